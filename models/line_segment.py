@@ -99,7 +99,8 @@ class LSParams:
         object.__setattr__(self, "eps_max", _validate.positive("eps_max", self.eps_max))
         object.__setattr__(self, "k_de_per_um", _validate.finite("k_de_per_um", self.k_de_per_um))
         object.__setattr__(self, "elongation", _validate.positive("elongation", self.elongation))
-        object.__setattr__(self, "n_segments", _validate.positive_int("n_segments", self.n_segments))
+        object.__setattr__(self, "n_segments",
+                           _validate.positive_int("n_segments", self.n_segments))
         if self.p_max_mpa is not None:
             object.__setattr__(self, "p_max_mpa",
                                float(_validate.positive("p_max_mpa", self.p_max_mpa)))

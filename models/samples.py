@@ -104,7 +104,8 @@ class Sample:
     p_max_mpa: float | None = None
 
     def __post_init__(self):
-        object.__setattr__(self, "length_um", float(_validate.positive("length_um", self.length_um)))
+        object.__setattr__(self, "length_um",
+                           float(_validate.positive("length_um", self.length_um)))
         object.__setattr__(self, "r_in_um", float(_validate.positive("r_in_um", self.r_in_um)))
         object.__setattr__(self, "E_mpa", float(_validate.positive("E_mpa", self.E_mpa)))
         if self.p_max_mpa is not None:

@@ -3,8 +3,15 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from models import (PAPER_SAMPLES, Sample, Section, eb_bend_angle, eb_curvatures, eb_shape,
-                    eb_shape_trapezoid)
+from models import (
+    PAPER_SAMPLES,
+    Sample,
+    Section,
+    eb_bend_angle,
+    eb_curvatures,
+    eb_shape,
+    eb_shape_trapezoid,
+)
 
 S1 = PAPER_SAMPLES[1]
 

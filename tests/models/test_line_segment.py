@@ -3,8 +3,18 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from models import (PAPER_SAMPLES, LSParams, Sample, Section, ls_bend_angle, ls_limit_shape,
-                    ls_shape, ls_shape_cumsum, ls_tilts, segment_counts)
+from models import (
+    PAPER_SAMPLES,
+    LSParams,
+    Sample,
+    Section,
+    ls_bend_angle,
+    ls_limit_shape,
+    ls_shape,
+    ls_shape_cumsum,
+    ls_tilts,
+    segment_counts,
+)
 
 S1 = PAPER_SAMPLES[1]
 P = 0.14

@@ -1,0 +1,212 @@
+"""Refine a predicted centreline on one frame: edges along normals → Gauss–Newton.
+
+Each iteration samples intensity profiles along the normals of the current
+curve, finds the tube's outer edge pairs (:mod:`pipeline.profiles`) and the
+tube's end along the tip tangent, and takes one damped, robustly weighted
+Gauss–Newton step on the spline coefficients and the length. The residual of
+a profile is the offset of the measured centre along the normal, i.e. the
+signed distance of the tube's midline from the curve, which stays meaningful
+where the tube crosses itself: such profiles are dropped by their width.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .centreline import Curve, evaluate, jacobian, make_basis, n_grid_for
+from .profiles import edge_pairs, end_edge, sample_lines
+
+
+@dataclass(frozen=True)
+class TubeLook:
+    """What the tracker has learnt about the tube's appearance.
+
+    Attributes
+    ----------
+    polarity : int
+        +1 if the tube is brighter than the background just inside its edge,
+        −1 if darker.
+    half_width : (W,) ndarray
+        Outer half-width along the tube at W evenly spaced fractions of its
+        length (from base to tip), px.
+    strength : float
+        Typical inward intensity step at the edges, per px (sets thresholds).
+    """
+
+    polarity: int
+    half_width: np.ndarray
+    strength: float
+
+    def half_width_at(self, u) -> np.ndarray:
+        grid = np.linspace(0.0, 1.0, self.half_width.size)
+        return np.interp(u, grid, self.half_width)
+
+    @property
+    def mean_half_width(self) -> float:
+        return float(np.mean(self.half_width))
+
+
+@dataclass(frozen=True)
+class Refined:
+    """Outcome of refining a curve on one frame.
+
+    Attributes
+    ----------
+    curve : Curve
+    u : (M,) ndarray
+        Profile positions (fractions of the length).
+    width : (M,) ndarray
+        Measured width at each profile, px (NaN where invalid).
+    valid : (M,) bool ndarray
+    residual_px : float
+        RMS offset of the valid profiles' centres from the final curve, px.
+    tip_found : bool
+    iterations : int
+    """
+
+    curve: Curve
+    u: np.ndarray
+    width: np.ndarray
+    valid: np.ndarray
+    residual_px: float
+    tip_found: bool
+    iterations: int
+
+    @property
+    def valid_fraction(self) -> float:
+        return float(self.valid.mean()) if self.valid.size else 0.0
+
+
+def _profile_layout(curve: Curve, look: TubeLook, n_grid: int, window: float, width_tol: float):
+    hw = look.mean_half_width
+    spacing = float(np.clip(hw / 3.0, 2.0, 12.0))
+    start = 0.25 * hw / curve.length
+    # up to the end: a profile across a flat end still meets both side edges,
+    # and one across a rounded end has the wrong width and is dropped
+    stop = 1.0 - 2.0 / curve.length
+    n = max(int((stop - start) * curve.length / spacing), 8)
+    u = np.linspace(start, stop, n)
+    idx = np.clip(np.round(u * (n_grid - 1)).astype(int), 0, n_grid - 1)
+    step = float(np.clip(hw / 24.0, 0.25, 1.0))
+    half = hw * (1 + width_tol) + window + 3.0
+    offsets = np.arange(-np.ceil(half / step), np.ceil(half / step) + 1) * step
+    return idx, offsets, step
+
+
+def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0),
+           window: float | None = None, iterations: int = 3, width_tol: float = 0.2,
+           fit_length: bool = True, tol_px: float = 0.02, smoothing: float = 1e-3) -> Refined:
+    """Fit ``curve`` to the tube in ``image``, starting from the curve itself.
+
+    Parameters
+    ----------
+    image : (rows, cols) float32 ndarray
+        The frame, or a crop of it.
+    curve : Curve
+        Prediction, in full-frame px (y up).
+    look : TubeLook
+    origin : (col, row)
+        Position of ``image[0, 0]`` in the full frame.
+    window : float, optional
+        Search range of the tube's centre around the curve, px (default:
+        half the tube's half-width).
+    iterations : int
+        Maximum number of profile → step rounds.
+    width_tol : float
+        Accepted relative deviation of a profile's width from the expected one.
+    fit_length : bool
+        Fit the length to the tube's end (else keep it).
+    tol_px : float
+        Stop when no grid point moves more than this, px.
+    smoothing : float
+        Weight of the roughness penalty ∫φ''² du relative to the data (scaled
+        by the trace of both): it damps the poorly observed wobble of the
+        last spline span, which would otherwise turn tiny edge noise near the
+        tip into tip-angle noise, and leaves arcs of constant curvature alone.
+    """
+    hw = look.mean_half_width
+    window = 0.5 * hw if window is None else window
+    shift = complex(origin[0], -origin[1])  # full frame → crop, y up
+    basis = make_basis(curve.coef.size, n_grid_for(curve.length))
+    idx, offsets, step = _profile_layout(curve, look, basis.n_grid, window, width_tol)
+    u = basis.u[idx]
+    hw_u = look.half_width_at(u)
+    k = curve.coef.size
+    min_strength = 0.25 * look.strength
+    tip_found = False
+    edges = None
+    it = 0
+    for it in range(1, iterations + 1):  # noqa: B007 (it is reported)
+        smp = evaluate(curve, basis)
+        normals = smp.normal[idx]
+        profiles = sample_lines(image, smp.z[idx] - shift, normals, offsets)
+        edges = edge_pairs(profiles, step, hw_u, polarity=look.polarity, window=window,
+                           width_tol=width_tol, min_strength=min_strength)
+        dz_da, dz_dl = jacobian(curve, basis, smp)
+        proj = np.conj(normals)[:, None]
+        rows_a = np.real(proj * dz_da[idx])
+        rows_l = np.real(proj[:, 0] * dz_dl[idx])
+        delta = edges.centre
+        valid = edges.valid
+        weights = valid.astype(float)
+        if valid.sum() >= 4:
+            dev = delta[valid] - np.median(delta[valid])
+            scale = max(1.0, 3.0 * 1.4826 * np.median(np.abs(dev)))
+            weights[valid] = np.minimum(1.0, scale / np.maximum(np.abs(delta[valid] -
+                                                                      np.median(delta[valid])),
+                                                               1e-9))
+        a_rows = [np.concatenate([rows_a, rows_l[:, None]], axis=1) * weights[:, None]]
+        b_rows = [delta * weights]
+        tip_found = False
+        if fit_length:
+            tip_off, tip_found = _tip_offset(image, smp, shift, look, window, step)
+            if tip_found:
+                # the end sets the length only (ΔL = how far the tube's end lies
+                # beyond the curve's, along the tangent); the shape is the side
+                # edges' job, and their rows carry the rescaling a change of L
+                # brings in this u-parametrisation
+                w_tip = max(3.0, 0.05 * weights.sum())
+                row = np.zeros(k + 1)
+                row[k] = w_tip
+                a_rows.append(row[None, :])
+                b_rows.append(np.array([w_tip * np.clip(tip_off, -window, window)]))
+        a_mat = np.concatenate(a_rows)
+        b_vec = np.concatenate(b_rows)
+        lhs = a_mat.T @ a_mat
+        rhs = a_mat.T @ b_vec
+        pen = smoothing * np.trace(lhs[:k, :k]) / np.trace(basis.roughness)
+        lhs[:k, :k] += pen * basis.roughness
+        rhs[:k] -= pen * basis.roughness @ curve.coef
+        # Marquardt damping keeps coefficients that no valid profile constrains
+        # (crossings) at their prediction; the length is held unless the tip was found
+        damp = 1e-3 * np.diag(lhs) + 1e-6 * (np.trace(lhs) / (k + 1)) + 1e-9
+        if not tip_found:
+            damp[-1] = 1e12
+        step_x = np.linalg.solve(lhs + np.diag(damp), rhs)
+        move = np.abs(dz_da @ step_x[:k] + dz_dl * step_x[k]).max()
+        curve = curve.with_params(curve.coef + step_x[:k], max(curve.length + step_x[k], 2.0))
+        if move < tol_px:
+            break
+    # residual of the last measurement against the curve it was measured from
+    res = edges.centre[edges.valid]
+    rms = float(np.sqrt(np.mean(res**2))) if res.size else np.inf
+    width = np.where(edges.valid, edges.width, np.nan)
+    return Refined(curve, u, width, edges.valid, rms, tip_found, it)
+
+
+def _tip_offset(image, smp, shift, look: TubeLook, window: float, step: float):
+    """Offset of the tube's end from the curve's end along the tip tangent, px."""
+    hw = look.mean_half_width
+    tangent = smp.tangent[-1]
+    normal = 1j * tangent
+    starts = smp.z[-1] - shift + normal * np.array([-0.4 * hw, 0.0, 0.4 * hw])
+    half = window + hw + 3.0
+    offsets = np.arange(-np.ceil(half / step), np.ceil(half / step) + 1) * step
+    prof = sample_lines(image, starts, np.full(3, tangent), offsets)
+    off, strength = end_edge(prof, step, polarity=look.polarity, window=window + 0.5 * hw)
+    good = np.isfinite(off) & (strength > 0.25 * look.strength)
+    if good.sum() < 2:
+        return 0.0, False
+    return float(np.median(off[good])), True
