@@ -30,8 +30,7 @@ from .shape import Shape
 
 __all__ = [
     "CrossSection", "LSParams", "PAPER_SAMPLES", "PAPER_TABLE2", "Sample", "Section",
-    "Shape",
-    "cross_section", "eb_bend_angle", "eb_curvatures", "eb_shape", "eb_shape_trapezoid",
-    "get_sample", "load_sample_toml", "ls_bend_angle", "ls_limit_shape", "ls_shape", "ls_shape_cumsum",
-    "ls_tilts", "sample_from_dict", "segment_counts",
+    "Shape", "cross_section", "eb_bend_angle", "eb_curvatures", "eb_shape",
+    "eb_shape_trapezoid", "get_sample", "load_sample_toml", "ls_bend_angle", "ls_limit_shape",
+    "ls_shape", "ls_shape_cumsum", "ls_tilts", "sample_from_dict", "segment_counts",
 ]

@@ -97,9 +97,10 @@ def _roughness(knots: np.ndarray, n_coef: int) -> np.ndarray:
     """∫ B_j'' B_k'' du for the free basis functions (second derivatives are
     piecewise linear, so Simpson's rule on each knot span is exact)."""
     spans = np.unique(knots)
-    nodes = np.concatenate([np.linspace(a, b, 3) for a, b in zip(spans[:-1], spans[1:], strict=True)])
+    pairs = list(zip(spans[:-1], spans[1:], strict=True))
+    nodes = np.concatenate([np.linspace(a, b, 3) for a, b in pairs])
     weights = np.concatenate([(b - a) / 6 * np.array([1.0, 4.0, 1.0])
-                              for a, b in zip(spans[:-1], spans[1:], strict=True)])
+                              for a, b in pairs])
     second = np.empty((nodes.size, n_coef + 1))
     for j in range(n_coef + 1):
         coef = np.zeros(n_coef + 1)
