@@ -57,12 +57,16 @@ class Basis:
     roughness : (K, K) ndarray
         ∫₀¹ B_j''(u) B_k''(u) du: the quadratic form of ∫ φ''² du, which
         penalises changes of curvature and leaves circular arcs untouched.
+    first_mid : (Q-1,) ndarray
+        Interval means of the left-out first B-spline B_0 (the only one
+        non-zero at u = 0), for fitting the base direction.
     """
 
     u: np.ndarray
     values: np.ndarray
     mid: np.ndarray
     roughness: np.ndarray
+    first_mid: np.ndarray
 
     @property
     def n_coef(self) -> int:
@@ -88,9 +92,10 @@ def make_basis(n_coef: int, n_grid: int) -> Basis:
     values = np.ascontiguousarray(full[:, 1:])
     mid = 0.5 * (values[1:] + values[:-1])
     roughness = _roughness(knots, n_coef)
-    for arr in (u, values, mid, roughness):
+    first_mid = 0.5 * (full[1:, 0] + full[:-1, 0])
+    for arr in (u, values, mid, roughness, first_mid):
         arr.flags.writeable = False
-    return Basis(u, values, mid, roughness)
+    return Basis(u, values, mid, roughness, first_mid)
 
 
 def _roughness(knots: np.ndarray, n_coef: int) -> np.ndarray:

@@ -76,9 +76,21 @@ def _parabolic(values: np.ndarray, idx: np.ndarray) -> np.ndarray:
     rows = np.arange(values.shape[0])
     y0, y1, y2 = values[rows, i - 1], values[rows, i], values[rows, i + 1]
     denom = y0 - 2 * y1 + y2
-    with np.errstate(invalid="ignore", divide="ignore"):
-        shift = np.where(denom < 0, 0.5 * (y0 - y2) / denom, 0.0)
-    return i + np.clip(np.nan_to_num(shift), -0.5, 0.5)
+    ok = np.isfinite(denom) & (denom < 0)
+    shift = np.zeros(idx.shape)
+    shift[ok] = 0.5 * (y0[ok] - y2[ok]) / denom[ok]
+    return i + np.clip(shift, -0.5, 0.5)
+
+
+def _inward_gradient(profiles: np.ndarray, step: float, smooth_px: float):
+    """Derivative-of-Gaussian along the profiles, and where samples are missing."""
+    bad = np.isnan(profiles)
+    if bad.any():
+        fill = np.nanmean(profiles) if not bad.all() else 0.0
+        profiles = np.where(bad, fill, profiles)
+    sigma = max(smooth_px / step, 0.5)
+    grad = gaussian_filter1d(profiles, sigma, axis=1, order=1, mode="nearest") / step
+    return grad, bad
 
 
 def edge_pairs(profiles: np.ndarray, step: float, half_width, *, polarity: int,
@@ -112,22 +124,20 @@ def edge_pairs(profiles: np.ndarray, step: float, half_width, *, polarity: int,
     Edges
     """
     m, p = profiles.shape
-    prof = np.nan_to_num(profiles, nan=np.nanmean(profiles) if np.isfinite(profiles).any()
-                         else 0.0)
-    if smooth_px > 0:
-        prof = gaussian_filter1d(prof, smooth_px / step, axis=1, mode="nearest")
-    grad = np.gradient(prof, step, axis=1)
+    grad, bad = _inward_gradient(profiles, step, smooth_px)
     inward_left = polarity * grad     # entering the tube from the −offset side
-    inward_right = -polarity * grad   # entering from the +offset side
-    bad = ~np.isfinite(profiles)
-    inward_left[bad] = -np.inf
-    inward_right[bad] = -np.inf
+    if bad.any():
+        inward_left[bad] = np.nan
+    inward_right = -inward_left       # entering from the +offset side
     hw = np.broadcast_to(np.asarray(half_width, dtype=float), (m,))
     hw_s = np.round(hw / step).astype(int)
     tol_s = np.maximum(np.round(width_tol * hw / step).astype(int), 1)
     size = int(2 * tol_s.max() + 1)
-    max_left = maximum_filter1d(inward_left, size, axis=1, mode="constant", cval=-np.inf)
-    max_right = maximum_filter1d(inward_right, size, axis=1, mode="constant", cval=-np.inf)
+    # NaN (outside the image) must never win a maximum: use −inf there
+    left_f = np.nan_to_num(inward_left, nan=-np.inf)
+    right_f = np.nan_to_num(inward_right, nan=-np.inf)
+    max_left = maximum_filter1d(left_f, size, axis=1, mode="constant", cval=-np.inf)
+    max_right = maximum_filter1d(right_f, size, axis=1, mode="constant", cval=-np.inf)
     mid = (p - 1) // 2
     w_s = int(round(window / step))
     cand = np.arange(mid - w_s, mid + w_s + 1)
@@ -139,22 +149,22 @@ def edge_pairs(profiles: np.ndarray, step: float, half_width, *, polarity: int,
     best = score.max(axis=1, keepdims=True)
     strong = score >= 0.7 * best
     dist = np.abs(cand - mid)[None, :]
-    pick = np.argmin(np.where(strong, dist, np.iinfo(np.int64).max), axis=1)
+    pick = np.argmin(np.where(strong, dist, p), axis=1)
     centre_s = cand[pick]
-    # refine each edge at its strongest sample within the tolerance, sub-sample
-    offs = np.arange(p)
-    lo_l = centre_s - hw_s - tol_s
-    lo_r = centre_s + hw_s - tol_s
-    win_l = (offs[None, :] >= lo_l[:, None]) & (offs[None, :] <= (lo_l + 2 * tol_s)[:, None])
-    win_r = (offs[None, :] >= lo_r[:, None]) & (offs[None, :] <= (lo_r + 2 * tol_s)[:, None])
-    left = np.where(win_l, inward_left, -np.inf)
-    right = np.where(win_r, inward_right, -np.inf)
-    il = np.argmax(left, axis=1)
-    ir = np.argmax(right, axis=1)
-    s_left = left[np.arange(m), il]
-    s_right = right[np.arange(m), ir]
-    pos_l = (_parabolic(inward_left, il) - mid) * step
-    pos_r = (_parabolic(inward_right, ir) - mid) * step
+    # each edge at its strongest sample within the tolerance, then sub-sample
+    r1 = np.arange(m)
+    win = np.arange(-int(tol_s.max()), int(tol_s.max()) + 1)
+    in_tol = np.abs(win)[None, :] <= tol_s[:, None]
+    il = np.clip((centre_s - hw_s)[:, None] + win[None, :], 0, p - 1)
+    ir = np.clip((centre_s + hw_s)[:, None] + win[None, :], 0, p - 1)
+    vl = np.where(in_tol, left_f[r1[:, None], il], -np.inf)
+    vr = np.where(in_tol, right_f[r1[:, None], ir], -np.inf)
+    jl = np.argmax(vl, axis=1)
+    jr = np.argmax(vr, axis=1)
+    s_left = vl[r1, jl]
+    s_right = vr[r1, jr]
+    pos_l = (_parabolic(left_f, il[r1, jl]) - mid) * step
+    pos_r = (_parabolic(right_f, ir[r1, jr]) - mid) * step
     width = pos_r - pos_l
     strength = np.minimum(s_left, s_right)
     valid = (np.isfinite(strength) & (strength > min_strength)
@@ -178,12 +188,9 @@ def end_edge(profiles: np.ndarray, step: float, *, polarity: int, window: float,
         Its step, intensity per px.
     """
     m, p = profiles.shape
-    prof = np.nan_to_num(profiles, nan=np.nanmean(profiles) if np.isfinite(profiles).any()
-                         else 0.0)
-    if smooth_px > 0:
-        prof = gaussian_filter1d(prof, smooth_px / step, axis=1, mode="nearest")
-    leaving = -polarity * np.gradient(prof, step, axis=1)
-    leaving[~np.isfinite(profiles)] = -np.inf
+    grad, bad = _inward_gradient(profiles, step, smooth_px)
+    leaving = -polarity * grad
+    leaving[bad] = -np.inf
     mid = (p - 1) // 2
     w_s = int(round(window / step))
     offs = np.arange(p)

@@ -11,7 +11,7 @@ where the tube crosses itself: such profiles are dropped by their width.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -64,6 +64,8 @@ class Refined:
         RMS offset of the valid profiles' centres from the final curve, px.
     tip_found : bool
     iterations : int
+    strength : float
+        Median inward edge step of the valid profiles, intensity per px.
     """
 
     curve: Curve
@@ -73,6 +75,7 @@ class Refined:
     residual_px: float
     tip_found: bool
     iterations: int
+    strength: float
 
     @property
     def valid_fraction(self) -> float:
@@ -97,7 +100,8 @@ def _profile_layout(curve: Curve, look: TubeLook, n_grid: int, window: float, wi
 
 def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0),
            window: float | None = None, iterations: int = 3, width_tol: float = 0.2,
-           fit_length: bool = True, tol_px: float = 0.02, smoothing: float = 1e-3) -> Refined:
+           fit_length: bool = True, tol_px: float = 0.02, smoothing: float = 1e-3,
+           free_base: bool = False, avoid_contact: bool = False) -> Refined:
     """Fit ``curve`` to the tube in ``image``, starting from the curve itself.
 
     Parameters
@@ -125,6 +129,16 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
         by the trace of both): it damps the poorly observed wobble of the
         last spline span, which would otherwise turn tiny edge noise near the
         tip into tip-angle noise, and leaves arcs of constant curvature alone.
+    free_base : bool
+        Also fit the base direction φ(0) (through the first B-spline, the
+        only one non-zero at the base) and a sideways shift of the base:
+        used when the tracker starts, to measure the base tangent; afterwards
+        both stay fixed.
+    avoid_contact : bool
+        Drop, before measuring, every profile whose search range reaches
+        another part of the same tube (a crossing or a touching coil), so
+        that the other layer's edges cannot be taken for this one's. The fit
+        then bridges the crossing with the spline, from both sides.
     """
     hw = look.mean_half_width
     window = 0.5 * hw if window is None else window
@@ -134,6 +148,8 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
     u = basis.u[idx]
     hw_u = look.half_width_at(u)
     k = curve.coef.size
+    n_extra = 2 if free_base else 0
+    n_par = k + 1 + n_extra
     min_strength = 0.25 * look.strength
     tip_found = False
     edges = None
@@ -144,20 +160,27 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
         profiles = sample_lines(image, smp.z[idx] - shift, normals, offsets)
         edges = edge_pairs(profiles, step, hw_u, polarity=look.polarity, window=window,
                            width_tol=width_tol, min_strength=min_strength)
+        if avoid_contact:
+            near = contact_mask(smp.z, idx, reach=hw * (2 + width_tol) + window + 2.0,
+                                gap=basis.u[1] * curve.length)
+            edges = replace(edges, valid=edges.valid & ~near)
         dz_da, dz_dl = jacobian(curve, basis, smp)
-        proj = np.conj(normals)[:, None]
-        rows_a = np.real(proj * dz_da[idx])
-        rows_l = np.real(proj[:, 0] * dz_dl[idx])
+        columns = [dz_da, dz_dl[:, None]]
+        if free_base:
+            base_normal = 1j * np.exp(1j * curve.base_angle)
+            d_first = np.zeros((basis.n_grid, 1), dtype=complex)
+            np.cumsum(1j * smp.chords * basis.first_mid, out=d_first[1:, 0])
+            columns += [d_first, np.full((basis.n_grid, 1), base_normal)]
+        dz = np.concatenate(columns, axis=1)
+        rows = np.real(np.conj(normals)[:, None] * dz[idx])
         delta = edges.centre
         valid = edges.valid
         weights = valid.astype(float)
         if valid.sum() >= 4:
-            dev = delta[valid] - np.median(delta[valid])
-            scale = max(1.0, 3.0 * 1.4826 * np.median(np.abs(dev)))
-            weights[valid] = np.minimum(1.0, scale / np.maximum(np.abs(delta[valid] -
-                                                                      np.median(delta[valid])),
-                                                               1e-9))
-        a_rows = [np.concatenate([rows_a, rows_l[:, None]], axis=1) * weights[:, None]]
+            dev = np.abs(delta[valid] - np.median(delta[valid]))
+            scale = max(1.0, 3.0 * 1.4826 * np.median(dev))
+            weights[valid] = np.minimum(1.0, scale / np.maximum(dev, 1e-9))
+        a_rows = [rows * weights[:, None]]
         b_rows = [delta * weights]
         tip_found = False
         if fit_length:
@@ -168,7 +191,7 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
                 # edges' job, and their rows carry the rescaling a change of L
                 # brings in this u-parametrisation
                 w_tip = max(3.0, 0.05 * weights.sum())
-                row = np.zeros(k + 1)
+                row = np.zeros(n_par)
                 row[k] = w_tip
                 a_rows.append(row[None, :])
                 b_rows.append(np.array([w_tip * np.clip(tip_off, -window, window)]))
@@ -181,19 +204,26 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
         rhs[:k] -= pen * basis.roughness @ curve.coef
         # Marquardt damping keeps coefficients that no valid profile constrains
         # (crossings) at their prediction; the length is held unless the tip was found
-        damp = 1e-3 * np.diag(lhs) + 1e-6 * (np.trace(lhs) / (k + 1)) + 1e-9
+        damp = 1e-3 * np.diag(lhs) + 1e-6 * (np.trace(lhs) / n_par) + 1e-9
         if not tip_found:
-            damp[-1] = 1e12
+            damp[k] = 1e12
         step_x = np.linalg.solve(lhs + np.diag(damp), rhs)
-        move = np.abs(dz_da @ step_x[:k] + dz_dl * step_x[k]).max()
+        move = np.abs(dz @ step_x).max()
         curve = curve.with_params(curve.coef + step_x[:k], max(curve.length + step_x[k], 2.0))
+        if free_base:
+            # B_0 = 1 − Σ_{k≥1} B_k (partition of unity): a change d of the first
+            # coefficient is a new base angle φ0 + d with every other coefficient − d
+            d = step_x[k + 1]
+            curve = replace(curve, base_angle=curve.base_angle + d, coef=curve.coef - d,
+                            base=curve.base + base_normal * step_x[k + 2])
         if move < tol_px:
             break
     # residual of the last measurement against the curve it was measured from
     res = edges.centre[edges.valid]
     rms = float(np.sqrt(np.mean(res**2))) if res.size else np.inf
     width = np.where(edges.valid, edges.width, np.nan)
-    return Refined(curve, u, width, edges.valid, rms, tip_found, it)
+    strength = float(np.median(edges.strength[edges.valid])) if res.size else 0.0
+    return Refined(curve, u, width, edges.valid, rms, tip_found, it, strength)
 
 
 def _tip_offset(image, smp, shift, look: TubeLook, window: float, step: float):
@@ -210,3 +240,69 @@ def _tip_offset(image, smp, shift, look: TubeLook, window: float, step: float):
     if good.sum() < 2:
         return 0.0, False
     return float(np.median(off[good])), True
+
+
+def contact_mask(z: np.ndarray, idx: np.ndarray, *, reach: float, gap: float) -> np.ndarray:
+    """Which profile points have another part of the curve within ``reach`` px.
+
+    "Another part" is any point farther along the curve than ``reach`` plus
+    half a turn's worth of arc: neighbours along the tube are always near.
+
+    Parameters
+    ----------
+    z : (Q,) complex ndarray
+        Curve points (grid spacing ``gap`` px).
+    idx : (M,) int ndarray
+        Grid indices of the profile points.
+    """
+    stride = max(1, int(reach / (3 * gap)))
+    pts = z[::stride]
+    pos = np.arange(0, z.size, stride)
+    d = np.abs(z[idx][:, None] - pts[None, :])
+    along = np.abs(idx[:, None] - pos[None, :]) * gap
+    far = along > np.pi * reach
+    return np.any((d < reach) & far, axis=1)
+
+
+def self_contact(curve: Curve, half_width: float) -> bool:
+    """Whether the tube, drawn with this centreline, touches or crosses itself."""
+    basis = make_basis(curve.coef.size, n_grid_for(curve.length))
+    z = evaluate(curve, basis).z
+    gap = basis.u[1] * curve.length
+    idx = np.arange(0, z.size, max(1, int(half_width / (2 * gap))))
+    return bool(contact_mask(z, idx, reach=2.2 * half_width, gap=gap).any())
+
+
+def locate_base(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0),
+                reach: float | None = None) -> Curve:
+    """Move the base along the base axis to where the tube's full width begins.
+
+    The pipette that holds the tube is narrower (or wider) than the tube, or
+    absent beyond the image border; along the base axis, profiles behind the
+    base therefore find no edge pair of the tube's width and profiles after it
+    do. The base is put at the change, to half a profile step, and the length
+    adjusted so that the tip stays where it is.
+    """
+    hw = float(look.half_width[0])
+    reach = 4.0 * hw if reach is None else reach
+    shift = complex(origin[0], -origin[1])
+    axis = np.exp(1j * curve.base_angle)
+    step = 0.5
+    s = np.arange(-reach, min(reach, 0.5 * curve.length), step)
+    starts = curve.base + s * axis - shift
+    offsets = np.arange(-np.ceil(2 * hw), np.ceil(2 * hw) + 1, 0.5)
+    prof = sample_lines(image, starts, np.full(s.size, 1j * axis), offsets)
+    edges = edge_pairs(prof, 0.5, hw, polarity=look.polarity, window=0.3 * hw,
+                       width_tol=0.15, min_strength=0.25 * look.strength)
+    ok = edges.valid.astype(float)
+    if ok.sum() < 4 or ok.all():
+        return curve
+    # best step from "not the tube" to "the tube" (least-squares change point)
+    c1 = np.cumsum(ok)
+    k = np.arange(1, s.size)
+    # valid profiles before the step plus invalid ones after it
+    cost = c1[k - 1] + ((s.size - k) - (c1[-1] - c1[k - 1]))
+    best = int(k[np.argmin(cost)])
+    s_base = 0.5 * (s[best - 1] + s[best])
+    return replace(curve, base=curve.base + s_base * axis,
+                   length=max(curve.length - s_base, 2.0))

@@ -1,0 +1,313 @@
+"""Find the tube in a frame without a prediction: the tracker's (re)start.
+
+Slow but global; run on the first frame and on frames where the fast
+refinement fails. Steps, at a working resolution of at most ~512 px:
+
+1. background = a wide median of the frame (illumination, vignetting), and
+   contrast = frame − background, in units of the noise (robust MAD);
+2. foreground = hysteresis threshold of |contrast|, so dark tubes, bright
+   tubes and transparent tubes whose only strong features are their rims all
+   give a mask;
+3. a hollow or transparent tube gives two rim lines: they are joined by a
+   closing whose radius is chosen where the mean width of the structure jumps
+   (the smallest radius that fills the tube) — not by ``binary_fill_holes``,
+   which would also fill the background enclosed by a curled tube;
+4. skeleton → pixel graph → the longest path of the largest structure; its
+   width profile (distance transform) separates the narrower pipette from the
+   tube, which gives the base (where the tube leaves the pipette).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from scipy import ndimage as ndi
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components, shortest_path
+from skimage.filters import apply_hysteresis_threshold
+from skimage.morphology import skeletonize
+
+from .centreline import from_image
+
+
+@dataclass(frozen=True)
+class Detection:
+    """A tube found in one frame.
+
+    Attributes
+    ----------
+    path : (M,) complex ndarray
+        Ordered points from the base to the tip end of the skeleton, px, y up
+        (full-frame coordinates).
+    base : complex
+        Base point, px, y up.
+    base_angle : float
+        Direction of the tube at its base, rad (CCW from +x, y up).
+    half_width : float
+        Rough outer half-width of the tube, px.
+    base_source : str
+        How the base was found (pipette width step, image border, given …).
+    """
+
+    path: np.ndarray
+    base: complex
+    base_angle: float
+    half_width: float
+    base_source: str
+
+
+def working_scale(shape, target: int = 512) -> int:
+    """Integer downsampling factor bringing the larger side to ≤ ``target`` px."""
+    return max(1, int(np.ceil(max(shape) / target)))
+
+
+def contrast_image(image: np.ndarray, factor: int):
+    """Background-subtracted frame at 1/``factor`` resolution, in noise units.
+
+    Returns
+    -------
+    contrast : (r, c) float32 ndarray
+        (frame − background) / noise σ.
+    background : (r, c) float32 ndarray
+    """
+    rows, cols = image.shape
+    small = cv2.resize(image, (max(cols // factor, 1), max(rows // factor, 1)),
+                       interpolation=cv2.INTER_AREA) if factor > 1 else image.copy()
+    # the median runs on a ≤128 px thumbnail (cv2's large-kernel median wants uint8)
+    t = max(1, int(np.ceil(max(small.shape) / 128)))
+    thumb = cv2.resize(small, (max(small.shape[1] // t, 1), max(small.shape[0] // t, 1)),
+                       interpolation=cv2.INTER_AREA)
+    lo, hi = np.percentile(thumb, [0.5, 99.5])
+    span = max(hi - lo, 1e-6)
+    thumb8 = np.clip((thumb - lo) / span * 255, 0, 255).astype(np.uint8)
+    k = max(3, (min(thumb.shape) // 5) | 1)
+    bg8 = cv2.medianBlur(thumb8, k)
+    bg_small = bg8.astype(np.float32) / 255 * span + lo
+    bg_small = cv2.GaussianBlur(bg_small, (0, 0), k / 4)
+    background = cv2.resize(bg_small, (small.shape[1], small.shape[0]),
+                            interpolation=cv2.INTER_LINEAR)
+    diff = small - background
+    hp = diff - cv2.GaussianBlur(diff, (0, 0), 2.0)
+    noise = 1.4826 * np.median(np.abs(hp - np.median(hp))) * 1.6 + 1e-6
+    return (diff / noise).astype(np.float32), background
+
+
+def foreground(contrast: np.ndarray, *, high: float = 6.0, low: float = 3.0,
+               min_area_frac: float = 2e-4) -> np.ndarray:
+    """Hysteresis mask of |contrast| (both polarities), small specks removed."""
+    mag = np.abs(cv2.GaussianBlur(contrast, (0, 0), 1.0))
+    mask = apply_hysteresis_threshold(mag, low, high)
+    labels, n = ndi.label(mask)
+    if n == 0:
+        return mask
+    areas = np.bincount(labels.ravel())
+    areas[0] = 0
+    keep = areas >= max(min_area_frac * mask.size, 8)
+    return keep[labels]
+
+
+def _largest(mask: np.ndarray) -> np.ndarray:
+    labels, n = ndi.label(mask)
+    if n == 0:
+        return mask
+    areas = np.bincount(labels.ravel())
+    areas[0] = 0
+    return labels == np.argmax(areas)
+
+
+def _mean_width(mask: np.ndarray) -> float:
+    skel = skeletonize(mask)
+    if skel.sum() < 3:
+        return 0.0
+    return float(mask.sum() / skel.sum())
+
+
+def fill_tube(mask: np.ndarray, max_radius: int | None = None):
+    """Join the rims of a hollow tube with the smallest closing that fills it.
+
+    Returns
+    -------
+    filled : bool ndarray
+        The largest structure after closing.
+    radius : int
+        Closing radius used, px (0 = the mask was already solid).
+    """
+    if max_radius is None:
+        max_radius = max(2, min(mask.shape) // 10)
+    radii = [r for r in (0, 1, 2, 3, 4, 6, 8, 11, 16, 22, 32, 45, 64) if r <= max_radius]
+    widths, filled = [], []
+    for r in radii:
+        if r == 0:
+            closed = mask
+        else:
+            se = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+            closed = cv2.morphologyEx(mask.astype(np.uint8), cv2.MORPH_CLOSE, se,
+                                      borderType=cv2.BORDER_REPLICATE).astype(bool)
+        comp = _largest(closed)
+        filled.append(comp)
+        widths.append(_mean_width(comp))
+    widths = np.array(widths)
+    # a hollow tube's width jumps (rim → whole tube) once the radius reaches
+    # half the gap between its rims; take the first such jump
+    for i in range(1, len(radii)):
+        if widths[i - 1] > 0 and widths[i] > 1.6 * widths[i - 1] and widths[i] > 2.5 * radii[i]:
+            return filled[i], radii[i]
+    return filled[0], radii[0]
+
+
+def _skeleton_graph(skel: np.ndarray):
+    rr, cc = np.nonzero(skel)
+    index = -np.ones(skel.shape, dtype=np.int64)
+    index[rr, cc] = np.arange(rr.size)
+    rows, cols, w = [], [], []
+    for dr, dc in ((0, 1), (1, 0), (1, 1), (1, -1)):
+        r2, c2 = rr + dr, cc + dc
+        ok = (r2 >= 0) & (r2 < skel.shape[0]) & (c2 >= 0) & (c2 < skel.shape[1])
+        j = np.full(rr.size, -1)
+        j[ok] = index[r2[ok], c2[ok]]
+        has = j >= 0
+        rows.append(np.nonzero(has)[0])
+        cols.append(j[has])
+        w.append(np.full(has.sum(), np.hypot(dr, dc)))
+    rows, cols, w = map(np.concatenate, (rows, cols, w))
+    n = rr.size
+    graph = coo_matrix((np.r_[w, w], (np.r_[rows, cols], np.r_[cols, rows])), shape=(n, n))
+    return graph.tocsr(), rr, cc
+
+
+def longest_path(skel: np.ndarray):
+    """The longest shortest path between two end points of a skeleton.
+
+    Returns
+    -------
+    (M, 2) int ndarray
+        (row, col) of the path's pixels, in order.
+    """
+    graph, rr, cc = _skeleton_graph(skel)
+    if rr.size < 2:
+        return np.stack([rr, cc], axis=1)
+    degree = np.diff(graph.indptr)
+    ends = np.nonzero(degree == 1)[0]
+    if ends.size < 2:
+        ends = np.arange(rr.size)[:: max(1, rr.size // 64)]
+    dist, pred = shortest_path(graph, indices=ends, return_predecessors=True)
+    dist[~np.isfinite(dist)] = -1
+    i, j = np.unravel_index(np.argmax(dist[:, ends] if ends.size else dist), (ends.size,
+                                                                               ends.size))
+    src, dst = ends[i], ends[j]
+    path = [dst]
+    while path[-1] != src:
+        path.append(pred[i, path[-1]])
+    path = np.array(path[::-1])
+    return np.stack([rr[path], cc[path]], axis=1)
+
+
+def _touches_border(point_rc, shape, margin: float) -> bool:
+    r, c = point_rc
+    return r < margin or c < margin or r > shape[0] - 1 - margin or c > shape[1] - 1 - margin
+
+
+def _split_point(width: np.ndarray) -> tuple[int, float]:
+    """Best single step of a piecewise-constant fit to ``width``: (index, ratio after/before)."""
+    n = width.size
+    if n < 6:
+        return 0, 1.0
+    c1 = np.cumsum(width)
+    c2 = np.cumsum(width**2)
+    k = np.arange(2, n - 2)
+    sse_left = c2[k - 1] - c1[k - 1] ** 2 / k
+    tot1, tot2 = c1[-1], c2[-1]
+    sse_right = (tot2 - c2[k - 1]) - (tot1 - c1[k - 1]) ** 2 / (n - k)
+    best = int(k[np.argmin(sse_left + sse_right)])
+    before = np.median(width[:best])
+    after = np.median(width[best:])
+    return best, float(after / max(before, 1e-9))
+
+
+def detect(image: np.ndarray, *, base_hint=None) -> Detection | None:
+    """Find the tube, its base and a rough centreline in one frame.
+
+    Parameters
+    ----------
+    image : (rows, cols) float32 ndarray
+        The frame, values in [0, 1].
+    base_hint : (col, row), optional
+        Where the base is (e.g. from ``--base``), px.
+
+    Returns
+    -------
+    Detection or None
+        None when no elongated structure stands out from the background.
+    """
+    f = working_scale(image.shape)
+    contrast, _ = contrast_image(image, f)
+    mask = foreground(contrast)
+    if mask.sum() < 20:
+        return None
+    filled, _ = fill_tube(mask)
+    dist = ndi.distance_transform_edt(filled)
+    skel = skeletonize(filled)
+    path_rc = longest_path(skel)
+    if path_rc.shape[0] < 5:
+        return None
+    width = 2 * dist[path_rc[:, 0], path_rc[:, 1]]
+    half_width = float(np.median(width)) / 2
+    if path_rc.shape[0] * 1.0 < 3 * half_width:
+        return None  # a blob, not a tube
+    # the skeleton stops about a radius short of each end: extend both ends
+    path_rc = path_rc.astype(float)
+    margin = 2.0 + half_width
+    shape = filled.shape
+    # orient base → tip
+    if base_hint is not None:
+        hint = np.array([base_hint[1], base_hint[0]], dtype=float) / f
+        d_first = np.hypot(*(path_rc[0] - hint))
+        d_last = np.hypot(*(path_rc[-1] - hint))
+        if d_last < d_first:
+            path_rc, width = path_rc[::-1], width[::-1]
+    else:
+        first_b = _touches_border(path_rc[0], shape, margin)
+        last_b = _touches_border(path_rc[-1], shape, margin)
+        if last_b and not first_b:
+            path_rc, width = path_rc[::-1], width[::-1]
+        elif first_b == last_b:
+            # neither (or both) end at the border: the base end is the nearer one
+            def border_dist(p):
+                return min(p[0], p[1], shape[0] - 1 - p[0], shape[1] - 1 - p[1])
+            if border_dist(path_rc[-1]) < border_dist(path_rc[0]):
+                path_rc, width = path_rc[::-1], width[::-1]
+    # base: the pipette is narrower than the tube; find the width step
+    split, ratio = _split_point(width)
+    if base_hint is not None:
+        hint = np.array([base_hint[1], base_hint[0]], dtype=float) / f
+        split = int(np.argmin(np.hypot(*(path_rc - hint).T)))
+        source = "given (--base)"
+    elif ratio > 1.15 and split > 2:
+        source = "pipette width step"
+    elif _touches_border(path_rc[0], shape, margin):
+        split = 0
+        source = "image border (no pipette step seen)"
+    else:
+        split = 0
+        source = "skeleton end nearest the border"
+    tube = path_rc[split:]
+    tube_width = width[split:]
+    half_width = float(np.median(tube_width)) / 2
+    pts = from_image(tube[:, 1] * f + (f - 1) / 2, tube[:, 0] * f + (f - 1) / 2)
+    if pts.size < 4:
+        return None
+    # smooth the pixel path a little: skeleton pixels zig-zag by ±0.5 px
+    k = max(1, int(half_width / 2))
+    if pts.size > 2 * k + 1:
+        kern = np.ones(2 * k + 1) / (2 * k + 1)
+        inner = np.convolve(pts, kern, mode="valid")
+        pts = np.concatenate([pts[:1], inner, pts[-1:]])
+    half_width_px = half_width * f
+    lead = pts[min(len(pts) - 1, max(2, int(3 * half_width)))] - pts[0]
+    base_angle = float(np.angle(lead))
+    tip_dir = pts[-1] - pts[max(0, len(pts) - 1 - max(2, int(half_width)))]
+    if abs(tip_dir) > 0:
+        pts = np.append(pts, pts[-1] + 0.9 * half_width_px * tip_dir / abs(tip_dir))
+    return Detection(pts, complex(pts[0]), base_angle, half_width_px, source)

@@ -1,0 +1,248 @@
+"""Track a microtube through a sequence of frames.
+
+Per frame, only the work the frame needs (cheapest first):
+
+1. **fast** — predict the centreline from the previous two frames (constant
+   velocity of the spline coefficients and length), crop the frame to the
+   region the predicted tube can occupy, and refine the prediction on the
+   crop's edges (:func:`pipeline.refine.refine`, 3 Gauss–Newton rounds);
+2. **crossing** — when the predicted tube touches or crosses itself, profiles
+   whose search range reaches the other layer are dropped before measuring,
+   and the spline bridges the crossing from both sides; temporal continuity
+   (the prediction) keeps the order along the tube and the unwrapped angle;
+3. **wide** — if the fit fails its checks, search again with a wider window
+   on the whole frame, from the prediction and from the previous frame;
+4. **redetect** — if that fails too, find the tube from scratch
+   (:mod:`pipeline.segment`) keeping the known base, and refine.
+
+A frame that none of these can measure keeps NaN measurements and a status
+saying why; tracking goes on with the last good shape as the prediction.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .centreline import Curve, evaluate, fit_to_polyline, make_basis, n_coef_for, n_grid_for
+from .refine import Refined, TubeLook, locate_base, refine, self_contact
+from .segment import detect
+
+#: Profiles that must hold a valid edge pair for a fit to be accepted.
+MIN_VALID = 0.7
+
+
+@dataclass(frozen=True)
+class FrameTrack:
+    """The tracker's result for one frame.
+
+    Attributes
+    ----------
+    frame : int
+        0-based frame index.
+    status : str
+        "ok", or a short reason why the frame could not be measured.
+    curve : Curve or None
+        The centreline, px (y up), when measured.
+    stage : str
+        The deepest stage the frame needed: init, fast, crossing, wide,
+        redetect (or "" when not measured).
+    residual_px : float
+        RMS offset of the edge midpoints from the fitted centreline, px.
+    valid_fraction : float
+        Share of the normal profiles that found both edges.
+    """
+
+    frame: int
+    status: str
+    curve: Curve | None
+    stage: str
+    residual_px: float = float("nan")
+    valid_fraction: float = float("nan")
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "ok"
+
+    @property
+    def bend_angle_rad(self) -> float:
+        """Tip tangent relative to the base tangent (φ(1) − φ(0)), rad."""
+        return float(self.curve.coef[-1]) if self.curve is not None else float("nan")
+
+
+def as_float(frame: np.ndarray) -> np.ndarray:
+    """A frame (or crop) as float32 in [0, 1], greyscale."""
+    if frame.dtype == np.uint8:
+        return frame.astype(np.float32) * np.float32(1 / 255)
+    if frame.dtype == np.uint16:
+        return frame.astype(np.float32) * np.float32(1 / 65535)
+    return frame.astype(np.float32, copy=False)
+
+
+def _learn_widths(refined: Refined, n_bins: int, fallback: float) -> np.ndarray:
+    """Median measured half-width in ``n_bins`` bins along the tube."""
+    edges = np.linspace(0, 1, n_bins + 1)
+    which = np.clip(np.digitize(refined.u, edges) - 1, 0, n_bins - 1)
+    out = np.full(n_bins, np.nan)
+    for b in range(n_bins):
+        w = refined.width[(which == b) & refined.valid]
+        if w.size >= 2:
+            out[b] = 0.5 * np.median(w)
+    if np.all(np.isnan(out)):
+        return np.full(n_bins, fallback)
+    good = ~np.isnan(out)
+    centres = 0.5 * (edges[1:] + edges[:-1])
+    return np.interp(centres, centres[good], out[good])
+
+
+def initialise(image: np.ndarray, *, base_hint=None):
+    """Find the tube from scratch and learn its look.
+
+    Returns
+    -------
+    (Refined, TubeLook, str) or None
+        The refined first centreline, the learnt look and how the base was
+        found; None when no tube stands out.
+    """
+    det = detect(image, base_hint=base_hint)
+    if det is None:
+        return None
+    hw = det.half_width
+    length = float(np.abs(np.diff(det.path)).sum())
+    curve = fit_to_polyline(det.path, det.base_angle, n_coef=n_coef_for(length, 2 * hw))
+    best = None
+    for polarity in (-1, 1):
+        look = TubeLook(polarity, np.full(9, hw), 0.0)
+        r = refine(image, curve, look, window=0.6 * hw, iterations=3, width_tol=0.4,
+                   fit_length=False)
+        score = r.valid_fraction * r.strength
+        if best is None or score > best[0]:
+            best = (score, polarity, r)
+    _, polarity, r = best
+    if r.valid_fraction < 0.3:
+        return None
+    look = TubeLook(polarity, _learn_widths(r, 9, hw), r.strength)
+    for width_tol in (0.3, 0.2):
+        r = refine(image, r.curve, look, iterations=8, width_tol=width_tol, free_base=True)
+        look = TubeLook(polarity, _learn_widths(r, 9, look.mean_half_width), r.strength)
+    if base_hint is None:
+        r = replace(r, curve=locate_base(image, r.curve, look))
+    r = refine(image, r.curve, look, iterations=6, free_base=True)
+    r = refine(image, r.curve, look, iterations=4)
+    return r, look, det.base_source
+
+
+def _predict(history: list[Curve]) -> Curve:
+    if len(history) < 2:
+        return history[-1]
+    c1, c0 = history[-1], history[-2]
+    return c1.with_params(2 * c1.coef - c0.coef, max(2 * c1.length - c0.length, 2.0))
+
+
+def _crop_box(curve: Curve, margin: float, shape):
+    basis = make_basis(curve.coef.size, n_grid_for(curve.length))
+    z = evaluate(curve, basis).z
+    col, row = z.real, -z.imag
+    r0 = int(max(0, np.floor(row.min() - margin)))
+    r1 = int(min(shape[0], np.ceil(row.max() + margin) + 1))
+    c0 = int(max(0, np.floor(col.min() - margin)))
+    c1 = int(min(shape[1], np.ceil(col.max() + margin) + 1))
+    return r0, r1, c0, c1
+
+
+def _good(r: Refined, look: TubeLook) -> bool:
+    return (r.valid_fraction >= MIN_VALID and r.tip_found
+            and r.residual_px <= max(0.5, 0.08 * look.mean_half_width))
+
+
+def _score(r: Refined) -> float:
+    return r.valid_fraction * (1.0 if r.tip_found else 0.5) / (1.0 + r.residual_px)
+
+
+def track_frames(frames: Iterable[np.ndarray], *, base_hint=None,
+                 progress: Callable[[int], None] | None = None) -> Iterator[FrameTrack]:
+    """Track the tube through ``frames`` (2-D arrays, any of uint8/uint16/float).
+
+    Parameters
+    ----------
+    frames : iterable of (rows, cols) ndarray
+        Greyscale frames, streamed.
+    base_hint : (col, row), optional
+        Where the tube leaves the pipette, px (e.g. from ``--base``).
+    progress : callable, optional
+        Called with each frame index once it is done.
+
+    Yields
+    ------
+    FrameTrack
+        One per frame, in order.
+    """
+    look: TubeLook | None = None
+    history: list[Curve] = []
+    for index, frame in enumerate(frames):
+        result = _track_one(index, frame, look, history, base_hint)
+        if isinstance(result, tuple):  # (re)initialised: a new look, a new history
+            result, look = result
+            history = []
+        if result.ok:
+            history = (history + [result.curve])[-2:]
+        yield result
+        if progress is not None:
+            progress(index)
+
+
+def _track_one(index, frame, look, history, base_hint):
+    if frame.ndim != 2:
+        raise ValueError(f"frame {index} is not a greyscale 2-D array: shape {frame.shape}")
+    if look is None or not history:
+        image = as_float(frame)
+        init = initialise(image, base_hint=base_hint)
+        if init is None:
+            return FrameTrack(index, "no tube found", None, "")
+        r, look, _ = init
+        status = "ok" if _good(r, look) else "tube found but its edges do not fit"
+        return (FrameTrack(index, status, r.curve if status == "ok" else None, "init",
+                           r.residual_px, r.valid_fraction), look)
+    hw = look.mean_half_width
+    pred = _predict(history)
+    crossing = self_contact(pred, hw)
+    # fast: refine the prediction inside the region it can occupy
+    r0, r1, c0, c1 = _crop_box(pred, 3 * hw + 8, frame.shape)
+    crop = as_float(frame[r0:r1, c0:c1])
+    r = refine(crop, pred, look, origin=(c0, r0), iterations=3, avoid_contact=crossing)
+    stage = "crossing" if crossing else "fast"
+    if not _good(r, look):
+        image = as_float(frame)
+        cands = [r]
+        for start in (pred, history[-1]):
+            cands.append(refine(image, start, look, window=1.5 * hw, iterations=10,
+                                avoid_contact=crossing or self_contact(start, hw)))
+        r = max(cands, key=_score)
+        stage = "wide"
+        if not _good(r, look) and not crossing:
+            prev = history[-1]
+            det = detect(image, base_hint=_base_col_row(prev))
+            if det is not None:
+                start = fit_to_polyline(det.path, prev.base_angle, n_coef=prev.coef.size)
+                start = replace(start, base=prev.base)
+                cand = refine(image, start, look, iterations=10)
+                if _score(cand) > _score(r):
+                    r = cand
+            stage = "redetect"
+    if not _good(r, look):
+        reason = ("lost: edges not found along the tube" if r.valid_fraction < MIN_VALID
+                  else "lost: tip not found" if not r.tip_found
+                  else "lost: edges do not fit a smooth tube")
+        return FrameTrack(index, reason, None, stage, r.residual_px, r.valid_fraction)
+    # the unwrapped angle must move continuously: a jump of ~a turn is a slip
+    jump = abs(r.curve.coef[-1] - history[-1].coef[-1])
+    if jump > np.pi:
+        return FrameTrack(index, "lost: bend angle jumped by about a turn", None, stage,
+                          r.residual_px, r.valid_fraction)
+    return FrameTrack(index, "ok", r.curve, stage, r.residual_px, r.valid_fraction)
+
+
+def _base_col_row(curve: Curve):
+    return (curve.base.real, -curve.base.imag)
