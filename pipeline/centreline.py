@@ -60,6 +60,9 @@ class Basis:
     first_mid : (Q-1,) ndarray
         Interval means of the left-out first B-spline B_0 (the only one
         non-zero at u = 0), for fitting the base direction.
+    roughness_first : (K+1,) ndarray
+        ∫ B_0'' B_j'' du for j = 0 … K (B_0 first), to extend the roughness
+        penalty when the base direction is fitted too.
     """
 
     u: np.ndarray
@@ -67,6 +70,7 @@ class Basis:
     mid: np.ndarray
     roughness: np.ndarray
     first_mid: np.ndarray
+    roughness_first: np.ndarray
 
     @property
     def n_coef(self) -> int:
@@ -91,16 +95,18 @@ def make_basis(n_coef: int, n_grid: int) -> Basis:
     full = BSpline.design_matrix(u, knots, degree).toarray()
     values = np.ascontiguousarray(full[:, 1:])
     mid = 0.5 * (values[1:] + values[:-1])
-    roughness = _roughness(knots, n_coef)
+    full_roughness = _roughness(knots, n_coef)
+    roughness = np.ascontiguousarray(full_roughness[1:, 1:])
+    roughness_first = np.ascontiguousarray(full_roughness[0])
     first_mid = 0.5 * (full[1:, 0] + full[:-1, 0])
-    for arr in (u, values, mid, roughness, first_mid):
+    for arr in (u, values, mid, roughness, first_mid, roughness_first):
         arr.flags.writeable = False
-    return Basis(u, values, mid, roughness, first_mid)
+    return Basis(u, values, mid, roughness, first_mid, roughness_first)
 
 
 def _roughness(knots: np.ndarray, n_coef: int) -> np.ndarray:
-    """∫ B_j'' B_k'' du for the free basis functions (second derivatives are
-    piecewise linear, so Simpson's rule on each knot span is exact)."""
+    """∫ B_j'' B_k'' du for all n_coef + 1 basis functions, B_0 first (second
+    derivatives are piecewise linear, so Simpson's rule on each span is exact)."""
     spans = np.unique(knots)
     pairs = list(zip(spans[:-1], spans[1:], strict=True))
     nodes = np.concatenate([np.linspace(a, b, 3) for a, b in pairs])
@@ -111,7 +117,6 @@ def _roughness(knots: np.ndarray, n_coef: int) -> np.ndarray:
         coef = np.zeros(n_coef + 1)
         coef[j] = 1.0
         second[:, j] = BSpline(knots, coef, 3).derivative(2)(nodes)
-    second = second[:, 1:]
     return (second.T * weights) @ second
 
 
@@ -284,3 +289,8 @@ def resample(curve: Curve, spacing_px: float = 1.0):
     basis = make_basis(curve.coef.size, max(n, 2))
     smp = evaluate(curve, basis)
     return basis.u * curve.length, smp.z
+
+
+def tip_point(curve: Curve) -> complex:
+    """The end of the centreline, px (y up), on the curve's exact grid."""
+    return complex(evaluate(curve, make_basis(curve.coef.size, n_grid_for(curve.length))).z[-1])

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-from scipy.ndimage import gaussian_filter1d, maximum_filter1d
+from scipy.ndimage import gaussian_filter1d
 
 from .centreline import to_image
 
@@ -70,15 +70,19 @@ class Edges:
 
 
 def _parabolic(values: np.ndarray, idx: np.ndarray) -> np.ndarray:
-    """Sub-sample peak position by a parabola through the peak and its neighbours."""
+    """Sub-sample peak positions by a parabola through each peak and its neighbours.
+
+    ``idx`` is (M,) or (M, K) indices into the rows of ``values``.
+    """
     n = values.shape[1]
     i = np.clip(idx, 1, n - 2)
-    rows = np.arange(values.shape[0])
+    rows = np.arange(values.shape[0]).reshape((-1,) + (1,) * (idx.ndim - 1))
     y0, y1, y2 = values[rows, i - 1], values[rows, i], values[rows, i + 1]
+    ok = np.isfinite(y0) & np.isfinite(y1) & np.isfinite(y2)
+    y0, y1, y2 = (np.where(ok, y, 0.0) for y in (y0, y1, y2))
     denom = y0 - 2 * y1 + y2
-    ok = np.isfinite(denom) & (denom < 0)
-    shift = np.zeros(idx.shape)
-    shift[ok] = 0.5 * (y0[ok] - y2[ok]) / denom[ok]
+    ok &= denom < 0
+    shift = np.divide(0.5 * (y0 - y2), denom, out=np.zeros(denom.shape), where=ok)
     return i + np.clip(shift, -0.5, 0.5)
 
 
@@ -93,10 +97,28 @@ def _inward_gradient(profiles: np.ndarray, step: float, smooth_px: float):
     return grad, bad
 
 
+def _top_peaks(values: np.ndarray, k: int):
+    """Indices and heights of the ``k`` highest local maxima of each row (−inf pads)."""
+    m, p = values.shape
+    is_max = np.zeros((m, p), dtype=bool)
+    is_max[:, 1:-1] = (values[:, 1:-1] >= values[:, :-2]) & (values[:, 1:-1] > values[:, 2:])
+    heights = np.where(is_max, values, -np.inf)
+    k = min(k, p)
+    idx = np.argpartition(-heights, k - 1, axis=1)[:, :k]
+    return idx, np.take_along_axis(heights, idx, axis=1)
+
+
 def edge_pairs(profiles: np.ndarray, step: float, half_width, *, polarity: int,
                window: float, width_tol: float = 0.2, smooth_px: float = 0.8,
-               min_strength: float = 0.0) -> Edges:
+               min_strength: float = 0.0, n_peaks: int = 5) -> Edges:
     """Find the tube's outer edge pair on every profile.
+
+    The inward steps on each side are reduced to their strongest local maxima
+    (sub-sample by a parabola); every left/right pair whose width is within
+    ``width_tol`` of the expected one and whose midpoint lies within
+    ``window`` is a candidate; among the candidates at least 70% as strong as
+    the best, the one nearest the profile's origin (the prediction) wins, so a
+    neighbouring coil or a crossing tube is not taken for this one.
 
     Parameters
     ----------
@@ -111,13 +133,13 @@ def edge_pairs(profiles: np.ndarray, step: float, half_width, *, polarity: int,
     window : float
         The centre is searched within ±window px of the profile origin.
     width_tol : float
-        Edges are sought within ±width_tol·half_width of their expected place
-        relative to a candidate centre, and a pair whose width is off by more
-        than that fraction is invalid.
+        Accepted relative deviation of the pair's width from 2·half_width.
     smooth_px : float
         Gaussian smoothing along the profile before differentiating, px.
     min_strength : float
         Weakest acceptable inward step, intensity per px.
+    n_peaks : int
+        Local maxima kept per side and profile.
 
     Returns
     -------
@@ -125,51 +147,35 @@ def edge_pairs(profiles: np.ndarray, step: float, half_width, *, polarity: int,
     """
     m, p = profiles.shape
     grad, bad = _inward_gradient(profiles, step, smooth_px)
-    inward_left = polarity * grad     # entering the tube from the −offset side
+    left = polarity * grad            # entering the tube from the −offset side
+    right = -left                     # entering from the +offset side
     if bad.any():
-        inward_left[bad] = np.nan
-    inward_right = -inward_left       # entering from the +offset side
-    hw = np.broadcast_to(np.asarray(half_width, dtype=float), (m,))
-    hw_s = np.round(hw / step).astype(int)
-    tol_s = np.maximum(np.round(width_tol * hw / step).astype(int), 1)
-    size = int(2 * tol_s.max() + 1)
-    # NaN (outside the image) must never win a maximum: use −inf there
-    left_f = np.nan_to_num(inward_left, nan=-np.inf)
-    right_f = np.nan_to_num(inward_right, nan=-np.inf)
-    max_left = maximum_filter1d(left_f, size, axis=1, mode="constant", cval=-np.inf)
-    max_right = maximum_filter1d(right_f, size, axis=1, mode="constant", cval=-np.inf)
-    mid = (p - 1) // 2
-    w_s = int(round(window / step))
-    cand = np.arange(mid - w_s, mid + w_s + 1)
-    rows = np.arange(m)[:, None]
-    li = np.clip(cand[None, :] - hw_s[:, None], 0, p - 1)
-    ri = np.clip(cand[None, :] + hw_s[:, None], 0, p - 1)
-    score = np.minimum(max_left[rows, li], max_right[rows, ri])
-    # among strong candidates prefer the one nearest the prediction
+        # a sample outside the image, or next to one, never makes an edge
+        near_bad = bad.copy()
+        near_bad[:, 1:] |= bad[:, :-1]
+        near_bad[:, :-1] |= bad[:, 1:]
+        left[near_bad] = -np.inf
+        right[near_bad] = -np.inf
+    mid = (p - 1) / 2
+    li, lh = _top_peaks(left, n_peaks)
+    ri, rh = _top_peaks(right, n_peaks)
+    lpos = (_parabolic(left, li) - mid) * step     # (M, K) offsets, px
+    rpos = (_parabolic(right, ri) - mid) * step
+    width = rpos[:, None, :] - lpos[:, :, None]    # (M, K, K)
+    centre = 0.5 * (rpos[:, None, :] + lpos[:, :, None])
+    strength = np.minimum(lh[:, :, None], rh[:, None, :])
+    hw = np.broadcast_to(np.asarray(half_width, dtype=float), (m,))[:, None, None]
+    ok = ((np.abs(width - 2 * hw) <= width_tol * 2 * hw) & (np.abs(centre) <= window)
+          & np.isfinite(strength) & (strength > min_strength))
+    score = np.where(ok, strength, -np.inf).reshape(m, -1)
     best = score.max(axis=1, keepdims=True)
-    strong = score >= 0.7 * best
-    dist = np.abs(cand - mid)[None, :]
-    pick = np.argmin(np.where(strong, dist, p), axis=1)
-    centre_s = cand[pick]
-    # each edge at its strongest sample within the tolerance, then sub-sample
-    r1 = np.arange(m)
-    win = np.arange(-int(tol_s.max()), int(tol_s.max()) + 1)
-    in_tol = np.abs(win)[None, :] <= tol_s[:, None]
-    il = np.clip((centre_s - hw_s)[:, None] + win[None, :], 0, p - 1)
-    ir = np.clip((centre_s + hw_s)[:, None] + win[None, :], 0, p - 1)
-    vl = np.where(in_tol, left_f[r1[:, None], il], -np.inf)
-    vr = np.where(in_tol, right_f[r1[:, None], ir], -np.inf)
-    jl = np.argmax(vl, axis=1)
-    jr = np.argmax(vr, axis=1)
-    s_left = vl[r1, jl]
-    s_right = vr[r1, jr]
-    pos_l = (_parabolic(left_f, il[r1, jl]) - mid) * step
-    pos_r = (_parabolic(right_f, ir[r1, jr]) - mid) * step
-    width = pos_r - pos_l
-    strength = np.minimum(s_left, s_right)
-    valid = (np.isfinite(strength) & (strength > min_strength)
-             & (np.abs(width - 2 * hw) <= width_tol * 2 * hw))
-    return Edges(0.5 * (pos_l + pos_r), width, strength, valid)
+    near = np.where(score >= 0.7 * best, np.abs(centre).reshape(m, -1), np.inf)
+    pick = np.argmin(near, axis=1)
+    rows = np.arange(m)
+    valid = np.isfinite(best[:, 0])
+    flat = (lambda a: a.reshape(m, -1)[rows, pick])
+    return Edges(np.where(valid, flat(centre), np.nan), np.where(valid, flat(width), np.nan),
+                 np.where(valid, flat(strength), -np.inf), valid)
 
 
 def end_edge(profiles: np.ndarray, step: float, *, polarity: int, window: float,

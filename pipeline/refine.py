@@ -173,8 +173,8 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
             columns += [d_first, np.full((basis.n_grid, 1), base_normal)]
         dz = np.concatenate(columns, axis=1)
         rows = np.real(np.conj(normals)[:, None] * dz[idx])
-        delta = edges.centre
         valid = edges.valid
+        delta = np.where(valid, edges.centre, 0.0)
         weights = valid.astype(float)
         if valid.sum() >= 4:
             dev = np.abs(delta[valid] - np.median(delta[valid]))
@@ -202,6 +202,15 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
         pen = smoothing * np.trace(lhs[:k, :k]) / np.trace(basis.roughness)
         lhs[:k, :k] += pen * basis.roughness
         rhs[:k] -= pen * basis.roughness @ curve.coef
+        if free_base:
+            # the base direction's B_0 joins the penalty: φ(0) then follows the
+            # curvature of the rest instead of kinking to fit the first few profiles
+            r0 = basis.roughness_first
+            j = k + 1
+            lhs[j, j] += pen * r0[0]
+            lhs[:k, j] += pen * r0[1:]
+            lhs[j, :k] += pen * r0[1:]
+            rhs[j] -= pen * r0[1:] @ curve.coef
         # Marquardt damping keeps coefficients that no valid profile constrains
         # (crossings) at their prediction; the length is held unless the tip was found
         damp = 1e-3 * np.diag(lhs) + 1e-6 * (np.trace(lhs) / n_par) + 1e-9

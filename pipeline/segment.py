@@ -25,7 +25,7 @@ import cv2
 import numpy as np
 from scipy import ndimage as ndi
 from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components, shortest_path
+from scipy.sparse.csgraph import shortest_path
 from skimage.filters import apply_hysteresis_threshold
 from skimage.morphology import skeletonize
 

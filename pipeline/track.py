@@ -53,6 +53,8 @@ class FrameTrack:
         RMS offset of the edge midpoints from the fitted centreline, px.
     valid_fraction : float
         Share of the normal profiles that found both edges.
+    work_fraction : float
+        Share of the frame's pixels the tracker looked at (its crop).
     """
 
     frame: int
@@ -61,6 +63,7 @@ class FrameTrack:
     stage: str
     residual_px: float = float("nan")
     valid_fraction: float = float("nan")
+    work_fraction: float = 1.0
 
     @property
     def ok(self) -> bool:
@@ -124,12 +127,15 @@ def initialise(image: np.ndarray, *, base_hint=None):
     if r.valid_fraction < 0.3:
         return None
     look = TubeLook(polarity, _learn_widths(r, 9, hw), r.strength)
+    # the base tangent is measured once, here, with a strong roughness penalty so
+    # that φ(0) follows the whole tube rather than the few profiles by the base
     for width_tol in (0.3, 0.2):
-        r = refine(image, r.curve, look, iterations=8, width_tol=width_tol, free_base=True)
+        r = refine(image, r.curve, look, iterations=8, width_tol=width_tol, free_base=True,
+                   smoothing=0.1)
         look = TubeLook(polarity, _learn_widths(r, 9, look.mean_half_width), r.strength)
     if base_hint is None:
         r = replace(r, curve=locate_base(image, r.curve, look))
-    r = refine(image, r.curve, look, iterations=6, free_base=True)
+    r = refine(image, r.curve, look, iterations=6, free_base=True, smoothing=0.1)
     r = refine(image, r.curve, look, iterations=4)
     return r, look, det.base_source
 
@@ -213,6 +219,7 @@ def _track_one(index, frame, look, history, base_hint):
     crop = as_float(frame[r0:r1, c0:c1])
     r = refine(crop, pred, look, origin=(c0, r0), iterations=3, avoid_contact=crossing)
     stage = "crossing" if crossing else "fast"
+    work = crop.size / frame.size
     if not _good(r, look):
         image = as_float(frame)
         cands = [r]
@@ -221,6 +228,7 @@ def _track_one(index, frame, look, history, base_hint):
                                 avoid_contact=crossing or self_contact(start, hw)))
         r = max(cands, key=_score)
         stage = "wide"
+        work = 1.0
         if not _good(r, look) and not crossing:
             prev = history[-1]
             det = detect(image, base_hint=_base_col_row(prev))
@@ -235,13 +243,13 @@ def _track_one(index, frame, look, history, base_hint):
         reason = ("lost: edges not found along the tube" if r.valid_fraction < MIN_VALID
                   else "lost: tip not found" if not r.tip_found
                   else "lost: edges do not fit a smooth tube")
-        return FrameTrack(index, reason, None, stage, r.residual_px, r.valid_fraction)
+        return FrameTrack(index, reason, None, stage, r.residual_px, r.valid_fraction, work)
     # the unwrapped angle must move continuously: a jump of ~a turn is a slip
     jump = abs(r.curve.coef[-1] - history[-1].coef[-1])
     if jump > np.pi:
         return FrameTrack(index, "lost: bend angle jumped by about a turn", None, stage,
-                          r.residual_px, r.valid_fraction)
-    return FrameTrack(index, "ok", r.curve, stage, r.residual_px, r.valid_fraction)
+                          r.residual_px, r.valid_fraction, work)
+    return FrameTrack(index, "ok", r.curve, stage, r.residual_px, r.valid_fraction, work)
 
 
 def _base_col_row(curve: Curve):

@@ -1,0 +1,219 @@
+"""The ``microtube`` command line (also ``python -m pipeline``).
+
+Only this module talks to the terminal: it parses options, draws progress bars
+(tqdm, on a terminal only), and turns every error about the input into one
+clear line on stderr with exit status 2. Library code never prints.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from pathlib import Path
+
+EXAMPLES = {
+    "track": "microtube track video.avi --out tracked/ --um-per-px 12.5\n"
+             "  microtube track frames/ --out tracked/ --sample 1 --base 12,380",
+    "calibrate": "microtube calibrate --sample 1 --tracks tracked/ --pressure pressure.csv "
+                 "--out fit.json",
+    "render": "microtube render --sample 1 --out scene/ --format avi --frames 50 --seed 3",
+    "demo": "microtube demo",
+    "report": "microtube report --out reports/",
+}
+
+
+class CliError(Exception):
+    """An error to report in one line."""
+
+
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not value > 0 or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"must be a positive number, got {text!r}")
+    return value
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"must be a positive whole number, got {text!r}")
+    return value
+
+
+def _progress(quiet: bool, desc: str):
+    """A ``progress(done, total)`` callback drawing a tqdm bar on a terminal, or None."""
+    if quiet or not sys.stderr.isatty():
+        return None, lambda: None
+    from tqdm import tqdm
+
+    bar = tqdm(desc=desc, unit="frame", leave=False, dynamic_ncols=True)
+
+    def update(done, total):
+        if total and bar.total != total:
+            bar.total = total
+        bar.n = done
+        bar.refresh()
+
+    return update, bar.close
+
+
+def cmd_track(args) -> int:
+    from .tracks import track_video
+
+    update, close = _progress(args.quiet, "tracking")
+    try:
+        run = track_video(args.input, args.out, um_per_px=args.um_per_px, sample=args.sample,
+                          base=args.base, fps=args.fps, overlay=args.overlay, progress=update)
+    finally:
+        close()
+    if not args.quiet:
+        print(f"tracked {run.n_ok}/{run.n_frames} frames in {run.runtime_s:.2f} s "
+              f"({run.frames_per_s:.0f} frames/s) -> {run.out_dir}")
+        for note in run.notes:
+            print(f"  - {note}")
+    if run.n_ok == 0:
+        raise CliError(f"no tube found in any of the {run.n_frames} frames "
+                       f"(see the status column of {Path(run.out_dir) / 'tracks.csv'})")
+    return 0
+
+
+def cmd_calibrate(args) -> int:
+    from .calibrate import calibrate_folder
+
+    if args.pressure is not None and args.p_max is not None:
+        raise CliError("give either --pressure or --p-max, not both")
+    result = calibrate_folder(args.sample, args.tracks, pressure_csv=args.pressure,
+                              p_max=args.p_max, model=args.model, n_segments=args.segments,
+                              out_json=args.out)
+    if not args.quiet:
+        print(result.summary() if hasattr(result, "summary") else f"wrote {args.out}")
+    return 0
+
+
+def cmd_render(args) -> int:
+    from .render import render_to_folder
+
+    out = render_to_folder(args.sample, args.out, fmt=args.format, n_frames=args.frames,
+                           seed=args.seed, look=args.look, bit_depth=args.bit_depth)
+    if not args.quiet:
+        print(f"rendered {args.frames} frames of sample {args.sample} -> {out}")
+    return 0
+
+
+def cmd_demo(args) -> int:
+    from .demo import run_demo
+
+    run_demo(frames_dir=args.frames, out_dir=args.out, reports_dir=args.reports,
+             quiet=args.quiet)
+    return 0
+
+
+def cmd_report(args) -> int:
+    from .report import write_reports
+
+    paths = write_reports(args.out, benchmarks=args.benchmarks, quiet=args.quiet)
+    if not args.quiet:
+        print(f"wrote {len(paths)} files into {args.out}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="microtube",
+        description="Track, measure and model the bending of pneumatic microtube actuators.",
+        epilog="Run 'microtube COMMAND --help' for a command's options and an example.")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+
+    def add(name, help_text, func):
+        p = sub.add_parser(name, help=help_text, description=help_text,
+                           epilog="example:\n  " + EXAMPLES[name],
+                           formatter_class=argparse.RawDescriptionHelpFormatter)
+        p.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
+        p.set_defaults(func=func)
+        return p
+
+    p = add("track", "Track the tube in a video, a folder of images or a multi-page TIFF: "
+            "centreline and bend angle for every frame.", cmd_track)
+    p.add_argument("input", help="video file, folder of images, or multi-page TIFF")
+    p.add_argument("--out", required=True, help="output folder (tracks.csv, centrelines.csv, "
+                   "run.json)")
+    scale = p.add_mutually_exclusive_group()
+    scale.add_argument("--um-per-px", type=_positive_float, help="image scale, um per pixel")
+    scale.add_argument("--sample", help="catalogue id (1-8) or sample .toml: the scale is then "
+                       "taken from its length L_tot on the least-bent frame")
+    p.add_argument("--base", help="where the tube leaves the pipette, X,Y in pixels "
+                   "(found automatically otherwise)")
+    p.add_argument("--fps", type=_positive_float, help="frame rate, when the file has none")
+    p.add_argument("--overlay", action="store_true",
+                   help="also write overlay.png with the tracked centrelines")
+
+    p = add("calibrate", "Fit the line-segment (or Euler-Bernoulli) model to tracked shapes "
+            "of one sample.", cmd_calibrate)
+    p.add_argument("--sample", required=True, help="catalogue id (1-8) or sample .toml")
+    p.add_argument("--tracks", required=True, help="folder written by 'microtube track'")
+    p.add_argument("--pressure", help="pressure log CSV (frame or time_s, pressure_mpa)")
+    p.add_argument("--p-max", type=_positive_float,
+                   help="without a log: pressure ramps linearly from 0 to this, MPa")
+    p.add_argument("--model", choices=("ls", "eb"), default="ls")
+    p.add_argument("--segments", type=_positive_int, help="line segments N (default 1000)")
+    p.add_argument("--out", required=True, help="result JSON (residuals CSV and overlay PNG "
+                   "are written beside it)")
+
+    p = add("render", "Render synthetic microscope frames of a sample with known truth.",
+            cmd_render)
+    p.add_argument("--sample", required=True, help="catalogue id (1-8) or sample .toml")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--format", choices=("avi", "mp4", "png", "tiff"), default="avi")
+    p.add_argument("--frames", type=_positive_int, default=50)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--look", default="transmitted",
+                   help="transmitted, opaque, fluorescent or low_contrast")
+    p.add_argument("--bit-depth", type=int, choices=(8, 16), default=8)
+
+    p = add("demo", "Track every scene in sample_frames/, calibrate each sample, compare with "
+            "the truth and write reports/.", cmd_demo)
+    p.add_argument("--frames", default=None, help="scenes folder (default: sample_frames/)")
+    p.add_argument("--out", default="demo_out", help="where tracks and fits go")
+    p.add_argument("--reports", default="reports", help="where the reports go")
+
+    p = add("report", "Write reports/: model accuracy and speed, stability, paper "
+            "reproduction, tracking and calibration results.", cmd_report)
+    p.add_argument("--out", default="reports")
+    p.add_argument("--benchmarks", action="store_true",
+                   help="also run the slower speed benchmarks")
+    return parser
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except KeyboardInterrupt:
+        print("microtube: interrupted", file=sys.stderr)
+        return 130
+    except (CliError, ValueError, OSError) as exc:
+        print(f"microtube {args.command}: error: {_one_line(exc)}", file=sys.stderr)
+        return 2
+    except Exception as exc:  # a bug, not bad input: still one line unless debugging
+        if os.environ.get("MICROTUBE_DEBUG"):
+            raise
+        print(f"microtube {args.command}: internal error: {type(exc).__name__}: "
+              f"{_one_line(exc)} (set MICROTUBE_DEBUG=1 for the traceback)", file=sys.stderr)
+        return 3
+
+
+def _one_line(exc: BaseException) -> str:
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else type(exc).__name__
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,265 @@
+"""From tracked curves to the tracker's tables, in micrometres.
+
+``tracks.csv`` has one row per frame and ``centrelines.csv`` one row per
+centreline point (long format, base → tip, ≤ 1 px apart); column names are
+in :mod:`pipeline.schema`. Pixel (col, row) becomes ``x_um = col·scale``,
+``y_um = −row·scale``: the tracker's curves are already in px with y up, so
+only the scale is applied here.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import Counter
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from . import schema as S
+from .atomic import write_csv, write_json
+from .centreline import Curve, resample, tip_point
+from .track import FrameTrack, track_frames
+
+
+def scale_from_length(results: list[FrameTrack], length_um: float) -> tuple[float, int]:
+    """µm per px from a known free length, measured on the least-bent good frame.
+
+    Returns
+    -------
+    scale : float
+        µm per px.
+    frame : int
+        The frame it was measured on.
+
+    Raises
+    ------
+    ValueError
+        When no frame was measured.
+    """
+    good = [r for r in results if r.ok]
+    if not good:
+        raise ValueError("cannot set the scale from the sample's length: no frame was measured")
+    least = min(good, key=lambda r: abs(r.bend_angle_rad))
+    return float(length_um / least.curve.length), least.frame
+
+
+def tracks_table(results: list[FrameTrack], scale: float, fps: float | None) -> pd.DataFrame:
+    """One row per frame (``schema.TRACK_COLUMNS``); NaN measurements where not ok."""
+    rows = []
+    for r in results:
+        row = {S.FRAME: r.frame,
+               S.TIME: r.frame / fps if fps else np.nan,
+               S.STATUS: r.status}
+        if r.ok:
+            c = r.curve
+            tip = tip_point(c)
+            row.update({S.BEND: np.degrees(r.bend_angle_rad),
+                        S.TIP_X: tip.real * scale, S.TIP_Y: tip.imag * scale,
+                        S.BASE_X: c.base.real * scale, S.BASE_Y: c.base.imag * scale,
+                        S.LENGTH: c.length * scale,
+                        S.BASE_ANGLE: np.degrees(c.base_angle)})
+        else:
+            row.update(dict.fromkeys((S.BEND, S.TIP_X, S.TIP_Y, S.BASE_X, S.BASE_Y, S.LENGTH,
+                                      S.BASE_ANGLE), np.nan))
+        rows.append(row)
+    return pd.DataFrame(rows, columns=S.TRACK_COLUMNS)
+
+
+def centrelines_table(results: list[FrameTrack], scale: float,
+                      spacing_px: float = 1.0) -> pd.DataFrame:
+    """Long-format centrelines of the measured frames, points ≤ ``spacing_px`` apart."""
+    parts = []
+    for r in results:
+        if not r.ok:
+            continue
+        s, z = resample(r.curve, spacing_px)
+        parts.append(pd.DataFrame({S.FRAME: r.frame, S.S: s * scale,
+                                   S.X: z.real * scale, S.Y: z.imag * scale}))
+    if not parts:
+        return pd.DataFrame(columns=S.CENTRELINE_COLUMNS)
+    return pd.concat(parts, ignore_index=True)[S.CENTRELINE_COLUMNS]
+
+
+def curve_record(curve: Curve) -> dict:
+    """A curve as plain JSON-able numbers (for run.json / re-use)."""
+    return {"base_col": curve.base.real, "base_row": -curve.base.imag,
+            "base_angle_deg": float(np.degrees(curve.base_angle)),
+            "length_px": curve.length, "coef": [float(c) for c in curve.coef]}
+
+
+# -- the whole job: frames in, files out ----------------------------------------------
+
+@dataclass(frozen=True)
+class TrackRun:
+    """Summary of one ``track`` run (also written as ``run.json``)."""
+
+    out_dir: Path
+    n_frames: int
+    n_ok: int
+    um_per_px: float
+    scale_source: str
+    base_source: str
+    stages: dict
+    runtime_s: float
+    notes: tuple[str, ...]
+
+    @property
+    def frames_per_s(self) -> float:
+        return self.n_frames / self.runtime_s if self.runtime_s > 0 else float("nan")
+
+
+def _parse_base(base):
+    if base is None:
+        return None
+    if isinstance(base, str):
+        parts = base.replace(" ", "").split(",")
+        if len(parts) != 2:
+            raise ValueError(f"--base must be X,Y in pixels, got {base!r}")
+        try:
+            base = (float(parts[0]), float(parts[1]))
+        except ValueError:
+            raise ValueError(f"--base must be X,Y in pixels, got {base!r}") from None
+    col, row = (float(v) for v in base)
+    if not (np.isfinite(col) and np.isfinite(row)):
+        raise ValueError(f"--base must be finite, got {base!r}")
+    return col, row
+
+
+def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
+                base=None, fps: float | None = None, overlay: bool = False,
+                progress=None) -> TrackRun:
+    """Track every frame of ``source`` and write the tracker's files into ``out_dir``.
+
+    Parameters
+    ----------
+    source : str or Path
+        A video, a folder of images or a multi-page TIFF (see
+        :func:`pipeline.frames.open_frames`).
+    out_dir : str or Path
+        Created if needed; ``tracks.csv``, ``centrelines.csv`` and ``run.json``
+        are written atomically (and ``overlay.png`` if asked).
+    um_per_px : float, optional
+        Image scale, µm per px.
+    sample : Sample or str, optional
+        Instead of a scale: a sample whose free length L_tot sets the scale on
+        the least-bent frame.
+    base : (col, row) or "X,Y", optional
+        Where the tube leaves the pipette, px; found automatically otherwise.
+    fps : float, optional
+        Frame rate for ``time_s`` when the file does not carry one.
+    overlay : bool
+        Also write ``overlay.png``: tracked centrelines on a few frames.
+    progress : callable, optional
+        ``progress(done, total)`` after every frame (total may be None).
+
+    Raises
+    ------
+    ValueError
+        On conflicting or invalid options and unreadable input (one line).
+    """
+    from models import get_sample
+
+    from .frames import open_frames
+
+    if um_per_px is not None and sample is not None:
+        raise ValueError("give either --um-per-px or --sample for the scale, not both")
+    if um_per_px is None and sample is None:
+        raise ValueError("the scale is unknown: give --um-per-px S, or --sample ID_OR_TOML "
+                         "to take it from the sample's length")
+    if um_per_px is not None:
+        um_per_px = float(um_per_px)
+        if not np.isfinite(um_per_px) or um_per_px <= 0:
+            raise ValueError(f"--um-per-px must be a positive number, got {um_per_px!r}")
+    if sample is not None:
+        sample = get_sample(sample)
+    if fps is not None and (not np.isfinite(fps) or fps <= 0):
+        raise ValueError(f"--fps must be a positive number, got {fps!r}")
+    base_hint = _parse_base(base)
+    out_dir = Path(out_dir)
+    start = time.perf_counter()
+    with open_frames(source) as reader:
+        total = len(reader)
+        rows, cols = reader.frame_shape
+        if base_hint is not None and not (0 <= base_hint[0] < cols and 0 <= base_hint[1] < rows):
+            raise ValueError(f"--base {base_hint} lies outside the {cols}x{rows} image")
+        rate = fps or reader.fps
+
+        def tick(i):
+            if progress is not None:
+                progress(i + 1, total)
+
+        results = list(track_frames(iter(reader), base_hint=base_hint, progress=tick))
+    runtime = time.perf_counter() - start
+    if not results:
+        raise ValueError(f"{source}: no frames to track")
+    if um_per_px is not None:
+        scale, scale_source = um_per_px, "given (--um-per-px)"
+    else:
+        scale, frame = scale_from_length(results, sample.length_um)
+        scale_source = (f"sample {sample.name}: L_tot = {sample.length_um:g} um over the "
+                        f"tracked length of frame {frame} (the least bent)")
+    tracks = tracks_table(results, scale, rate)
+    lines = centrelines_table(results, scale)
+    stages = Counter(r.stage for r in results if r.stage)
+    notes = _notes(results, stages, base_hint is not None, rate)
+    n_ok = int(sum(r.ok for r in results))
+    run = TrackRun(out_dir, len(results), n_ok, scale, scale_source,
+                   "given (--base)" if base_hint else "automatic", dict(stages), runtime,
+                   tuple(notes))
+    out_dir.mkdir(parents=True, exist_ok=True)
+    write_csv(tracks, out_dir / S.TRACKS_FILE)
+    write_csv(lines, out_dir / S.CENTRELINES_FILE)
+    write_json(_run_record(run, source, rate, results), out_dir / S.RUN_FILE)
+    if overlay:
+        from .overlay import write_overlay
+
+        write_overlay(source, results, out_dir / "overlay.png")
+    return run
+
+
+def _notes(results, stages, base_given: bool, rate) -> list[str]:
+    n = len(results)
+    notes = []
+    work = [r.work_fraction for r in results if r.stage in ("fast", "crossing")]
+    if work:
+        notes.append(f"cropped to the tube's region: {100 * np.mean(work):.0f}% of each frame's "
+                     "pixels on average")
+    n_cross = stages.get("crossing", 0)
+    notes.append(f"crossing handling ran on {n_cross} of {n} frames" +
+                 ("" if n_cross else " (the tube never touched itself)") +
+                 (" (only frames whose predicted tube touches itself need it)" if n_cross else ""))
+    for stage, why in (("wide", "the fast fit failed its checks"),
+                       ("redetect", "the wide search failed too")):
+        k = stages.get(stage, 0)
+        notes.append(f"{stage} search ran on {k} of {n} frames" +
+                     (f" ({why})" if k else " (never needed)"))
+    if base_given:
+        notes.append("base given: automatic base search left out")
+    if not rate:
+        notes.append("frame rate unknown: time_s left empty (give --fps)")
+    lost = [r for r in results if not r.ok]
+    if lost:
+        reasons = Counter(r.status for r in lost)
+        notes.append("not measured: " + "; ".join(f"{k} ({v} frames)" for k, v in reasons.items()))
+    return notes
+
+
+def _run_record(run: TrackRun, source, rate, results) -> dict:
+    good = [r for r in results if r.ok]
+    return {
+        "input": str(source),
+        "frames": run.n_frames,
+        "frames_ok": run.n_ok,
+        "fps": rate,
+        "um_per_px": run.um_per_px,
+        "scale_source": run.scale_source,
+        "base_source": run.base_source,
+        "stages": run.stages,
+        "runtime_s": round(run.runtime_s, 3),
+        "frames_per_s": round(run.frames_per_s, 1),
+        "median_residual_px": float(np.median([r.residual_px for r in good])) if good else None,
+        "left_out_and_why": list(run.notes),
+        "first_curve": curve_record(good[0].curve) if good else None,
+    }

@@ -1,0 +1,68 @@
+"""Exact analytic test images for the tracker's unit tests.
+
+A tube whose axis is a circular arc (or a straight line) has a closed-form
+distance from any pixel centre to its axis, so the image is exact to rounding:
+the edge-pair midline lies on the axis by construction. Independent of
+pipeline.render on purpose: these tests pin the tracker's geometry down on
+their own.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.special import erf
+
+
+def arc_axis(base: complex, angle: float, length: float, kappa: float, n: int = 2001):
+    """Points (px, y up) and headings of an arc from ``base`` along ``angle``."""
+    s = np.linspace(0, length, n)
+    phi = angle + kappa * s
+    if abs(kappa) < 1e-12:
+        z = base + s * np.exp(1j * angle)
+    else:
+        z = base + (np.exp(1j * phi) - np.exp(1j * angle)) / (1j * kappa)
+    return z, phi
+
+
+def _signed_position(zp, base, angle, length, kappa):
+    """(arc length of the nearest axis point, signed distance to the left) per pixel."""
+    if abs(kappa) < 1e-12:
+        rel = (zp - base) * np.exp(-1j * angle)
+        return rel.real, rel.imag
+    centre = base + 1j * np.exp(1j * angle) / kappa
+    rel = zp - centre
+    radius = 1 / abs(kappa)
+    # angle of the pixel around the centre, measured from the base direction
+    start = np.angle(base - centre)
+    ang = np.angle(rel * np.exp(-1j * start)) * np.sign(kappa)
+    ang = np.mod(ang + np.pi / 2, 2 * np.pi) - np.pi / 2  # base at 0, allow slightly before
+    s = ang * radius
+    d = (radius - np.abs(rel)) * np.sign(kappa)
+    return s, d
+
+
+def tube_image(shape, base, angle, length, kappa, half_width, *, polarity=-1,
+               background=0.8, contrast=0.35, edge_px=0.7, noise=0.0, seed=0,
+               pipette_half_width=None):
+    """A float32 frame of one tube (and optionally a coaxial pipette behind its base).
+
+    The tube is ``half_width`` wide on each side of the axis, with soft (erf)
+    edges of scale ``edge_px``; transmitted-light looks have ``polarity`` −1.
+    """
+    rows, cols = shape
+    rr, cc = np.mgrid[0:rows, 0:cols]
+    zp = cc - 1j * rr
+    s, d = _signed_position(zp, base, angle, length, kappa)
+    inside_len = 0.5 * (1 + erf(s / edge_px)) * 0.5 * (1 + erf((length - s) / edge_px))
+    across = 0.5 * (1 + erf((half_width - np.abs(d)) / edge_px))
+    tube = across * inside_len
+    img = np.full(shape, background, dtype=float)
+    img *= 1 + polarity * contrast * tube
+    if pipette_half_width is not None:
+        rel = (zp - base) * np.exp(-1j * angle)
+        behind = 0.5 * (1 + erf(-rel.real / edge_px))
+        pip = behind * 0.5 * (1 + erf((pipette_half_width - np.abs(rel.imag)) / edge_px))
+        img *= 1 + polarity * 0.5 * contrast * pip
+    if noise:
+        img += np.random.default_rng(seed).normal(0, noise, shape)
+    return np.clip(img, 0, 1).astype(np.float32)

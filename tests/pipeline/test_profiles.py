@@ -1,0 +1,77 @@
+import numpy as np
+import pytest
+from scipy.special import erf
+
+from pipeline.profiles import edge_pairs, end_edge, sample_lines
+
+
+def _profiles(centres, half_widths, polarity=-1, step=0.5, half=40.0, noise=0.0, seed=0,
+              edge=0.8, extra_edge=None):
+    off = np.arange(-half, half + step / 2, step)
+    c = np.asarray(centres)[:, None]
+    hw = np.asarray(half_widths)[:, None]
+    inside = 0.5 * (1 + erf((hw - np.abs(off[None, :] - c)) / edge))
+    prof = 0.8 * (1 + polarity * 0.3 * inside)
+    if extra_edge is not None:  # a second tube further out (e.g. another coil)
+        prof *= 1 + polarity * 0.3 * 0.5 * (1 + erf((6 - np.abs(off - extra_edge)) / edge))
+    rng = np.random.default_rng(seed)
+    return prof + rng.normal(0, noise, prof.shape), step
+
+
+@pytest.mark.parametrize("polarity", [-1, 1])
+def test_edge_pairs_find_centres_and_widths_sub_pixel(polarity):
+    centres = np.linspace(-6, 6, 25)
+    prof, step = _profiles(centres, np.full(25, 15.0), polarity=polarity)
+    e = edge_pairs(prof, step, 15.0, polarity=polarity, window=8.0)
+    assert e.valid.all()
+    assert np.abs(e.centre - centres).max() < 0.02
+    assert np.abs(e.width - 30.0).max() < 0.1
+
+
+def test_wrong_polarity_or_width_is_invalid():
+    prof, step = _profiles(np.zeros(5), np.full(5, 15.0), polarity=-1)
+    wrong_pol = edge_pairs(prof, step, 15.0, polarity=1, window=8.0, min_strength=0.01)
+    wrong_width = edge_pairs(prof, step, 22.0, polarity=-1, window=8.0, min_strength=0.01)
+    assert not wrong_pol.valid.any()
+    assert not wrong_width.valid.any()
+
+
+def test_noise_keeps_the_centre_unbiased():
+    centres = np.full(400, 1.3)
+    prof, step = _profiles(centres, np.full(400, 12.0), noise=0.01, seed=3)
+    e = edge_pairs(prof, step, 12.0, polarity=-1, window=6.0)
+    assert e.valid.mean() > 0.98
+    assert abs(np.mean(e.centre[e.valid]) - 1.3) < 0.01
+    assert np.std(e.centre[e.valid]) < 0.1
+
+
+def test_the_pair_nearest_the_prediction_wins_over_a_neighbouring_tube():
+    # another 12-px tube sits 24 px to the side: the nearer pair must be chosen
+    prof, step = _profiles(np.array([2.0]), np.array([6.0]), extra_edge=26.0, half=45)
+    e = edge_pairs(prof, step, 6.0, polarity=-1, window=20.0)
+    assert e.valid[0] and abs(e.centre[0] - 2.0) < 0.05
+
+
+def test_nan_samples_never_make_an_edge():
+    prof, step = _profiles(np.zeros(3), np.full(3, 10.0))
+    prof[:, : prof.shape[1] // 2] = np.nan  # left half outside the image
+    e = edge_pairs(prof, step, 10.0, polarity=-1, window=5.0)
+    assert not e.valid.any()
+
+
+def test_end_edge_takes_the_outermost_strong_step():
+    off = np.arange(-30, 30.25, 0.25)
+    body = 0.5 * (1 + erf((0.0 - off) / 0.8))           # tube ends at 0
+    lumen = 0.5 * (1 + erf((-8.0 - off) / 0.8))          # lumen ends 8 px inside
+    prof = 0.8 * (1 - 0.3 * body + 0.2 * lumen)
+    pos, strength = end_edge(prof[None, :], 0.25, polarity=-1, window=20.0)
+    assert abs(pos[0]) < 0.05 and strength[0] > 0
+
+
+def test_sample_lines_reads_bilinear_values_and_nan_outside():
+    img = np.add.outer(np.arange(20.0), 100 * np.arange(30.0)).astype(np.float32)  # row + 100 col
+    starts = np.array([5.0 - 7.0j])   # col 5, row 7
+    got = sample_lines(img, starts, np.array([1.0 + 0j]), np.array([0.0, 0.5, 100.0]))
+    assert got[0, 0] == pytest.approx(7 + 500)
+    assert got[0, 1] == pytest.approx(7 + 550)
+    assert np.isnan(got[0, 2])

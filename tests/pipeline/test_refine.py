@@ -1,0 +1,79 @@
+import numpy as np
+import pytest
+
+from pipeline.centreline import Curve, evaluate, fit_to_polyline, make_basis, n_grid_for
+from pipeline.refine import TubeLook, locate_base, refine, self_contact
+from tests.pipeline.synthetic import arc_axis, tube_image
+
+SHAPE = (480, 640)
+BASE = 120 - 420j
+
+
+def _base(kappa):
+    # bending up (κ > 0) from low in the frame, down from high in it
+    return BASE if kappa >= 0 else 120 - 130j
+
+
+def _truth(kappa, length=450.0, angle=0.0):
+    z, _ = arc_axis(_base(kappa), angle, length, kappa)
+    return fit_to_polyline(z, angle, n_coef=12)
+
+
+def _errors(curve, truth):
+    basis = make_basis(truth.coef.size, n_grid_for(truth.length))
+    zt = evaluate(truth, basis)
+    zc = evaluate(curve.with_params(curve.coef, curve.length), basis)
+    return (np.degrees(abs(curve.coef[-1] - truth.coef[-1])), np.abs(zc.z - zt.z).max(),
+            abs(curve.length - truth.length))
+
+
+@pytest.mark.parametrize("kappa", [0.0, 1 / 250, -1 / 300])
+@pytest.mark.parametrize("polarity", [-1, 1])
+def test_refine_converges_from_a_perturbed_prediction(kappa, polarity):
+    truth = _truth(kappa)
+    img = tube_image(SHAPE, _base(kappa), 0.0, 450.0, kappa, 16.0, polarity=polarity,
+                     noise=0.01)
+    look = TubeLook(polarity, np.full(5, 16.0), 0.05)
+    start = truth.with_params(truth.coef * 0.97 + 0.01, truth.length * 0.985)
+    r = refine(img, start, look, iterations=12, tol_px=0.005)
+    angle_err, pos_err, len_err = _errors(r.curve, truth)
+    assert r.valid_fraction > 0.95 and r.tip_found
+    assert angle_err < 0.3 and pos_err < 0.3 and len_err < 1.0
+
+
+def test_refine_in_a_crop_matches_the_full_frame():
+    truth = _truth(1 / 300)
+    img = tube_image(SHAPE, BASE, 0.0, 450.0, 1 / 300, 16.0)
+    look = TubeLook(-1, np.full(5, 16.0), 0.05)
+    full = refine(img, truth, look, iterations=3)
+    r0, c0 = 100, 60
+    crop = refine(img[r0:, c0:], truth, look, origin=(c0, r0), iterations=3)
+    assert np.allclose(full.curve.coef, crop.curve.coef, atol=1e-9)
+
+
+def test_free_base_recovers_the_base_tangent():
+    truth = _truth(0.0, angle=0.2)
+    img = tube_image(SHAPE, BASE, 0.2, 450.0, 0.0, 16.0, noise=0.01)
+    look = TubeLook(-1, np.full(5, 16.0), 0.05)
+    start = Curve(truth.base + 1.5j, 0.2 + np.radians(3), truth.length, truth.coef * 0)
+    # a strong roughness penalty: φ(0) must follow the rest of the tube
+    r = refine(img, start, look, iterations=12, free_base=True, smoothing=0.1)
+    assert abs(np.degrees(r.curve.base_angle - 0.2)) < 0.1
+    assert abs(np.degrees(r.curve.coef[-1])) < 0.2  # straight: no bend left over
+
+
+def test_locate_base_finds_where_the_tube_leaves_a_narrower_pipette():
+    img = tube_image(SHAPE, BASE, 0.0, 450.0, 0.0, 16.0, pipette_half_width=8.0)
+    truth = _truth(0.0)
+    look = TubeLook(-1, np.full(5, 16.0), 0.05)
+    moved = Curve(truth.base + 9.0, 0.0, truth.length - 9.0, truth.coef)
+    found = locate_base(img, moved, look)
+    assert abs(found.base - BASE) < 1.0
+    assert abs(found.length - 450.0) < 1.0
+
+
+def test_self_contact_is_seen_only_when_the_tube_meets_itself():
+    open_arc = _truth(1 / 200)                      # ~130°
+    curl = _truth(1.15 * 2 * np.pi / 450.0)         # 1.15 turns: crosses its base region
+    assert not self_contact(open_arc, 16.0)
+    assert self_contact(curl, 16.0)
