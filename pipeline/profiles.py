@@ -173,9 +173,12 @@ def edge_pairs(profiles: np.ndarray, step: float, half_width, *, polarity: int,
     pick = np.argmin(near, axis=1)
     rows = np.arange(m)
     valid = np.isfinite(best[:, 0])
-    flat = (lambda a: a.reshape(m, -1)[rows, pick])
-    return Edges(np.where(valid, flat(centre), np.nan), np.where(valid, flat(width), np.nan),
-                 np.where(valid, flat(strength), -np.inf), valid)
+    def chosen(a):
+        return a.reshape(m, -1)[rows, pick]
+
+    return Edges(np.where(valid, chosen(centre), np.nan),
+                 np.where(valid, chosen(width), np.nan),
+                 np.where(valid, chosen(strength), -np.inf), valid)
 
 
 def end_edge(profiles: np.ndarray, step: float, *, polarity: int, window: float,

@@ -1,8 +1,16 @@
 import numpy as np
 import pytest
 
-from pipeline.centreline import (Curve, evaluate, fit_to_polyline, jacobian, make_basis,
-                                 n_grid_for, resample, tip_point)
+from pipeline.centreline import (
+    Curve,
+    evaluate,
+    fit_to_polyline,
+    jacobian,
+    make_basis,
+    n_grid_for,
+    resample,
+    tip_point,
+)
 from tests.pipeline.synthetic import arc_axis
 
 
