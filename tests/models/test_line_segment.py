@@ -120,17 +120,18 @@ def test_converges_to_the_arc_chain_limit_as_n_grows(eps_max, k, sample_id, p, s
     sample = PAPER_SAMPLES[sample_id]
     params = LSParams(eps_max=eps_max, k_de_per_um=k, p_max_mpa=0.14, elongation=stretch)
     limit = ls_limit_shape(sample, p, params, n_points=2)
-    ns = [1024, 2048, 4096, 8192, 16384]
-    shapes = [ls_shape(sample, p, params.replace(n_segments=n), n_points=2) for n in ns]
+    ns = np.array([2**14, 2**16, 2**18, 2**20])
+    shapes = [ls_shape(sample, p, params.replace(n_segments=int(n)), n_points=2) for n in ns]
     d_angle = np.abs([sh.bend_angle_rad - limit.bend_angle_rad for sh in shapes])
     d_tip = np.array([np.hypot(*(sh.tip_um - limit.tip_um)) for sh in shapes])
-    # atan saturation: the angle converges as N^-2 (a factor 4 per doubling)
-    assert np.all(d_angle[1:] <= d_angle[:-1] / 3.5 + 1e-12)
-    # positions (headings at segment ends) converge as N^-1; the error vector turns
-    # with N while the bend is many turns, so its norm need not fall at every
-    # doubling: ask for 4x over 16x more segments, and error·N bounded
-    assert d_tip[-1] <= d_tip[0] / 4 + 1e-9
-    assert np.all(d_tip * ns <= 2 * d_tip[0] * ns[0] + 1e-6)
+    # atan saturation: the angle converges as N^-2 (a factor 16 per quadrupling)
+    assert np.all(d_angle[1:] <= d_angle[:-1] / 12 + 1e-12)
+    # positions converge as N^-1: each segment's heading is off the arc's by at most
+    # one tilt (Φ/N), so |Δtip| ≤ L·(|Φ|/N + |ΔΦ|); and in this asymptotic range
+    # below N ~ 10^4 the N^-1 and N^-2 terms can cancel, and per-section rounding
+    # of the segment counts makes the error jitter, so it need not fall at every step
+    bound = limit.length_um * (abs(limit.bend_angle_rad) / ns + d_angle)
+    assert np.all(d_tip <= bound + 1e-9)
     assert shapes[-1].length_um == pytest.approx(limit.length_um, rel=1e-14)
 
 
