@@ -240,10 +240,12 @@ def _tip_offset(image, smp, shift, look: TubeLook, window: float, step: float):
     hw = look.mean_half_width
     tangent = smp.tangent[-1]
     normal = 1j * tangent
-    starts = smp.z[-1] - shift + normal * np.array([-0.4 * hw, 0.0, 0.4 * hw])
+    # across the whole end face: a hollow tube's end is strongest near its walls
+    lateral = np.array([-0.7, -0.4, 0.0, 0.4, 0.7]) * hw
+    starts = smp.z[-1] - shift + normal * lateral
     half = window + hw + 3.0
     offsets = np.arange(-np.ceil(half / step), np.ceil(half / step) + 1) * step
-    prof = sample_lines(image, starts, np.full(3, tangent), offsets)
+    prof = sample_lines(image, starts, np.full(lateral.size, tangent), offsets)
     off, strength = end_edge(prof, step, polarity=look.polarity, window=window + 0.5 * hw)
     good = np.isfinite(off) & (strength > 0.25 * look.strength)
     if good.sum() < 2:

@@ -75,17 +75,13 @@ def contrast_image(image: np.ndarray, factor: int):
     rows, cols = image.shape
     small = cv2.resize(image, (max(cols // factor, 1), max(rows // factor, 1)),
                        interpolation=cv2.INTER_AREA) if factor > 1 else image.copy()
-    # the median runs on a ≤128 px thumbnail (cv2's large-kernel median wants uint8)
+    # illumination (gradient, vignetting) is smooth: a robust low-order surface fitted
+    # on a ≤128 px thumbnail follows it into the corners, where a median does not,
+    # and ignores the tube (Tukey weights)
     t = max(1, int(np.ceil(max(small.shape) / 128)))
     thumb = cv2.resize(small, (max(small.shape[1] // t, 1), max(small.shape[0] // t, 1)),
-                       interpolation=cv2.INTER_AREA)
-    lo, hi = np.percentile(thumb, [0.5, 99.5])
-    span = max(hi - lo, 1e-6)
-    thumb8 = np.clip((thumb - lo) / span * 255, 0, 255).astype(np.uint8)
-    k = max(3, (min(thumb.shape) // 5) | 1)
-    bg8 = cv2.medianBlur(thumb8, k)
-    bg_small = bg8.astype(np.float32) / 255 * span + lo
-    bg_small = cv2.GaussianBlur(bg_small, (0, 0), k / 4)
+                       interpolation=cv2.INTER_AREA).astype(np.float64)
+    bg_small = _smooth_surface(thumb)
     background = cv2.resize(bg_small, (small.shape[1], small.shape[0]),
                             interpolation=cv2.INTER_LINEAR)
     diff = small - background
@@ -94,10 +90,39 @@ def contrast_image(image: np.ndarray, factor: int):
     return (diff / noise).astype(np.float32), background
 
 
+def _smooth_surface(thumb: np.ndarray, degree: int = 4, rounds: int = 6) -> np.ndarray:
+    """Robust least-squares polynomial surface through an image (Tukey biweight)."""
+    rows, cols = thumb.shape
+    y, x = np.mgrid[0:rows, 0:cols]
+    x = (x.ravel() / max(cols - 1, 1)) * 2 - 1
+    y = (y.ravel() / max(rows - 1, 1)) * 2 - 1
+    terms = [x**i * y**j for i in range(degree + 1) for j in range(degree + 1 - i)]
+    design = np.stack(terms, axis=1)
+    values = thumb.ravel()
+    weights = np.ones_like(values)
+    for _ in range(rounds):
+        sw = np.sqrt(weights)
+        coef = np.linalg.lstsq(design * sw[:, None], values * sw, rcond=None)[0]
+        resid = values - design @ coef
+        scale = 1.4826 * np.median(np.abs(resid[weights > 0])) + 1e-9
+        u = resid / (4.685 * scale)
+        weights = np.where(np.abs(u) < 1, (1 - u**2) ** 2, 0.0)
+    return (design @ coef).reshape(rows, cols).astype(np.float32)
+
+
 def foreground(contrast: np.ndarray, *, high: float = 6.0, low: float = 3.0,
                min_area_frac: float = 2e-4) -> np.ndarray:
     """Hysteresis mask of |contrast| (both polarities), small specks removed."""
-    mag = np.abs(cv2.GaussianBlur(contrast, (0, 0), 1.0))
+    smooth = cv2.GaussianBlur(contrast, (0, 0), 1.0)
+    # thresholds in units of the *smoothed* image's noise (≈ 0.3 of the raw noise
+    # for white noise, but measured: compression and optics correlate the noise)
+    hp = smooth - cv2.GaussianBlur(smooth, (0, 0), 4.0)
+    noise = 1.4826 * np.median(np.abs(hp - np.median(hp)))
+    # ... but no lower than what the background model leaves over the whole frame
+    # (uneven illumination it did not follow), or that residue floods the mask
+    spread = 1.4826 * np.median(np.abs(smooth - np.median(smooth)))
+    noise = max(noise, spread) + 1e-6
+    mag = np.abs(smooth) / noise
     mask = apply_hysteresis_threshold(mag, low, high)
     labels, n = ndi.label(mask)
     if n == 0:
@@ -122,6 +147,26 @@ def _mean_width(mask: np.ndarray) -> float:
     if skel.sum() < 3:
         return 0.0
     return float(mask.sum() / skel.sum())
+
+
+def fill_lumen(mask: np.ndarray, *, elongation: float = 4.0) -> np.ndarray:
+    """Fill the holes a visible lumen leaves in the mask, not the background a curl encloses.
+
+    A lumen is a long thin hole (its area is many times that of its largest
+    inscribed disc); the background enclosed by a curled tube is round.
+    """
+    holes = ~mask
+    labels, n = ndi.label(holes)
+    if n <= 1:
+        return mask
+    edge = np.unique(np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]]))
+    index = np.arange(1, n + 1)
+    radius = ndi.maximum(ndi.distance_transform_edt(holes), labels, index)
+    area = np.bincount(labels.ravel(), minlength=n + 1)[1:]
+    fill = (area > elongation * np.pi * np.asarray(radius) ** 2) | (np.asarray(radius) <= 2)
+    fill[np.isin(index, edge)] = False
+    lut = np.concatenate([[False], fill])
+    return mask | lut[labels]
 
 
 def fill_tube(mask: np.ndarray, max_radius: int | None = None):
@@ -151,8 +196,12 @@ def fill_tube(mask: np.ndarray, max_radius: int | None = None):
     widths = np.array(widths)
     # a hollow tube's width jumps (rim → whole tube) once the radius reaches
     # half the gap between its rims; take the first such jump
+    # (the rims may merge gradually first, so ask for a clear step followed by a
+    # plateau rather than one fixed ratio)
     for i in range(1, len(radii)):
-        if widths[i - 1] > 0 and widths[i] > 1.6 * widths[i - 1] and widths[i] > 2.5 * radii[i]:
+        step = widths[i - 1] > 0 and widths[i] >= 1.25 * widths[i - 1]
+        plateau = i == len(radii) - 1 or widths[i + 1] <= 1.12 * widths[i]
+        if step and plateau and widths[i] > 2.5 * radii[i]:
             return filled[i], radii[i]
     return filled[0], radii[0]
 
@@ -246,7 +295,7 @@ def detect(image: np.ndarray, *, base_hint=None) -> Detection | None:
     mask = foreground(contrast)
     if mask.sum() < 20:
         return None
-    filled, _ = fill_tube(mask)
+    filled, _ = fill_tube(fill_lumen(mask))
     dist = ndi.distance_transform_edt(filled)
     skel = skeletonize(filled)
     path_rc = longest_path(skel)

@@ -217,7 +217,10 @@ def _track_one(index, frame, look, history, base_hint):
     # fast: refine the prediction inside the region it can occupy
     r0, r1, c0, c1 = _crop_box(pred, 3 * hw + 8, frame.shape)
     crop = as_float(frame[r0:r1, c0:c1])
-    r = refine(crop, pred, look, origin=(c0, r0), iterations=3, avoid_contact=crossing)
+    # without a velocity yet (second frame after a start) the prediction is only
+    # the last shape: give Gauss–Newton more rounds
+    rounds = 3 if len(history) >= 2 else 8
+    r = refine(crop, pred, look, origin=(c0, r0), iterations=rounds, avoid_contact=crossing)
     stage = "crossing" if crossing else "fast"
     work = crop.size / frame.size
     if not _good(r, look):
