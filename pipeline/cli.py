@@ -17,7 +17,8 @@ EXAMPLES = {
              "  microtube track frames/ --out tracked/ --sample 1 --base 12,380",
     "calibrate": "microtube calibrate --sample 1 --tracks tracked/ --pressure pressure.csv "
                  "--out fit.json",
-    "render": "microtube render --sample 1 --out scene/ --format avi --frames 50 --seed 3",
+    "render": "microtube render --sample 1 --out scene/ --format avi --frames 50 --seed 3\n"
+              "  microtube render --sample-frames --out sample_frames/",
     "demo": "microtube demo",
     "report": "microtube report --out reports/",
 }
@@ -98,13 +99,46 @@ def cmd_calibrate(args) -> int:
 
 
 def cmd_render(args) -> int:
-    from .render import render_to_folder
+    chosen = [x for x in (args.sample, args.scene) if x is not None] + (
+        ["--sample-frames"] if args.sample_frames else [])
+    if len(chosen) != 1:
+        raise CliError("give exactly one of --sample ID, --scene scene.json or "
+                       "--sample-frames")
+    update, close = _progress(args.quiet, "rendering")
+    try:
+        if args.sample_frames:
+            from .sample_scenes import write_sample_frames
 
-    out = render_to_folder(args.sample, args.out, fmt=args.format, n_frames=args.frames,
-                           seed=args.seed, look=args.look, bit_depth=args.bit_depth)
+            written = write_sample_frames(args.out, progress=update)
+            if not args.quiet:
+                print(f"rendered {len(written)} scenes -> {args.out}")
+            return 0
+        from .render import render_to_folder
+
+        size = _size(args.size)
+        out = render_to_folder(args.sample, args.out, fmt=args.format, n_frames=args.frames,
+                               seed=args.seed, look=args.look, bit_depth=args.bit_depth,
+                               scene_file=args.scene, progress=update,
+                               **({} if args.scene else {
+                                   "base_angle_deg": args.angle, "mirror": args.mirror,
+                                   "width": size[0], "height": size[1]}))
+    finally:
+        close()
     if not args.quiet:
-        print(f"rendered {args.frames} frames of sample {args.sample} -> {out}")
+        print(f"rendered {'scene ' + args.scene if args.scene else 'sample ' + args.sample} "
+              f"-> {out}")
     return 0
+
+
+def _size(text: str) -> tuple[int, int]:
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise CliError(f"--size must be WIDTHxHEIGHT in px, e.g. 1024x768, got {text!r}") \
+            from None
+    if w < 32 or h < 32:
+        raise CliError(f"--size must be at least 32x32 px, got {text!r}")
+    return w, h
 
 
 def cmd_demo(args) -> int:
@@ -168,7 +202,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = add("render", "Render synthetic microscope frames of a sample with known truth.",
             cmd_render)
-    p.add_argument("--sample", required=True, help="catalogue id (1-8) or sample .toml")
+    p.add_argument("--sample", help="catalogue id (1-8) or sample .toml")
+    p.add_argument("--scene", help="regenerate the scene described by a scene.json")
+    p.add_argument("--sample-frames", action="store_true",
+                   help="regenerate all the committed scenes of sample_frames/")
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--format", choices=("avi", "mp4", "png", "tiff"), default="avi")
     p.add_argument("--frames", type=_positive_int, default=50)
@@ -176,6 +213,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--look", default="transmitted",
                    help="transmitted, opaque, fluorescent or low_contrast")
     p.add_argument("--bit-depth", type=int, choices=(8, 16), default=8)
+    p.add_argument("--size", default="1024x768", help="image size WIDTHxHEIGHT, px")
+    p.add_argument("--angle", type=float, default=0.0,
+                   help="direction of the tube at its base, degrees CCW from +x")
+    p.add_argument("--mirror", action="store_true", help="curl clockwise")
 
     p = add("demo", "Track every scene in sample_frames/, calibrate each sample, compare with "
             "the truth and write reports/.", cmd_demo)

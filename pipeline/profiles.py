@@ -182,12 +182,13 @@ def edge_pairs(profiles: np.ndarray, step: float, half_width, *, polarity: int,
 
 
 def end_edge(profiles: np.ndarray, step: float, *, polarity: int, window: float,
-             smooth_px: float = 0.8, strong: float = 0.6):
+             smooth_px: float = 0.8, strong: float = 0.6, nearest: bool = False):
     """Position of the tube's end on profiles running along the tangent, tip outwards.
 
     The *outermost* strong tube → background step within ±window is taken, so
     that an inner edge (the end of the lumen inside a sealed tip) is not
-    mistaken for the end of the tube.
+    mistaken for the end of the tube; with ``nearest`` (crossings), the strong
+    step nearest the window's centre.
 
     Returns
     -------
@@ -210,7 +211,13 @@ def end_edge(profiles: np.ndarray, step: float, *, polarity: int, window: float,
     is_max = np.zeros_like(masked, dtype=bool)
     is_max[:, 1:-1] = (masked[:, 1:-1] >= masked[:, :-2]) & (masked[:, 1:-1] >= masked[:, 2:])
     ok = is_max & (masked >= strong * peak) & np.isfinite(masked)
-    idx = p - 1 - np.argmax(ok[:, ::-1], axis=1)
+    if nearest:
+        # where the tip lies over another part of the tube, the outermost step may
+        # be that part's edge: take the strong step nearest the prediction instead
+        dist = np.where(ok, np.abs(offs - mid)[None, :], np.inf)
+        idx = np.argmin(dist, axis=1)
+    else:
+        idx = p - 1 - np.argmax(ok[:, ::-1], axis=1)
     found = ok.any(axis=1)
     offset = np.where(found, (_parabolic(leaving, idx) - mid) * step, np.nan)
     return offset, np.where(found, masked[np.arange(m), idx], -np.inf)

@@ -76,10 +76,18 @@ class Refined:
     tip_found: bool
     iterations: int
     strength: float
+    usable: np.ndarray | None = None
 
     @property
     def valid_fraction(self) -> float:
-        return float(self.valid.mean()) if self.valid.size else 0.0
+        """Share of the usable profiles (not dropped at a crossing) that found the tube."""
+        mask = self.usable if self.usable is not None else np.ones(self.valid.size, bool)
+        return float(self.valid[mask].mean()) if mask.any() else 0.0
+
+    @property
+    def coverage(self) -> float:
+        """Share of the profiles usable at all (1 unless the tube crosses itself)."""
+        return float(self.usable.mean()) if self.usable is not None else 1.0
 
 
 def _profile_layout(curve: Curve, look: TubeLook, n_grid: int, window: float, width_tol: float):
@@ -160,6 +168,7 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
         profiles = sample_lines(image, smp.z[idx] - shift, normals, offsets)
         edges = edge_pairs(profiles, step, hw_u, polarity=look.polarity, window=window,
                            width_tol=width_tol, min_strength=min_strength)
+        near = np.zeros(idx.size, bool)
         if avoid_contact:
             near = contact_mask(smp.z, idx, reach=hw * (2 + width_tol) + window + 2.0,
                                 gap=basis.u[1] * curve.length)
@@ -184,7 +193,8 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
         b_rows = [delta * weights]
         tip_found = False
         if fit_length:
-            tip_off, tip_found = _tip_offset(image, smp, shift, look, window, step)
+            tip_off, tip_found = _tip_offset(image, smp, shift, look, window, step,
+                                             nearest=avoid_contact)
             if tip_found:
                 # the end sets the length only (ΔL = how far the tube's end lies
                 # beyond the curve's, along the tangent); the shape is the side
@@ -232,10 +242,11 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
     rms = float(np.sqrt(np.mean(res**2))) if res.size else np.inf
     width = np.where(edges.valid, edges.width, np.nan)
     strength = float(np.median(edges.strength[edges.valid])) if res.size else 0.0
-    return Refined(curve, u, width, edges.valid, rms, tip_found, it, strength)
+    return Refined(curve, u, width, edges.valid, rms, tip_found, it, strength, ~near)
 
 
-def _tip_offset(image, smp, shift, look: TubeLook, window: float, step: float):
+def _tip_offset(image, smp, shift, look: TubeLook, window: float, step: float, *,
+                nearest: bool = False):
     """Offset of the tube's end from the curve's end along the tip tangent, px."""
     hw = look.mean_half_width
     tangent = smp.tangent[-1]
@@ -246,7 +257,8 @@ def _tip_offset(image, smp, shift, look: TubeLook, window: float, step: float):
     half = window + hw + 3.0
     offsets = np.arange(-np.ceil(half / step), np.ceil(half / step) + 1) * step
     prof = sample_lines(image, starts, np.full(lateral.size, tangent), offsets)
-    off, strength = end_edge(prof, step, polarity=look.polarity, window=window + 0.5 * hw)
+    off, strength = end_edge(prof, step, polarity=look.polarity, window=window + 0.5 * hw,
+                             nearest=nearest)
     good = np.isfinite(off) & (strength > 0.25 * look.strength)
     if good.sum() < 2:
         return 0.0, False

@@ -537,14 +537,14 @@ class Renderer:
 def truth_tables(scene: Scene, layout: Layout | None = None):
     """(tracks, centrelines, pressure) DataFrames of the scene's truth, tracker columns.
 
-    Centreline points are ≤ 0.5 px apart, base to tip.
+    Centreline points are ≤ 0.9 px apart, base to tip.
     """
     layout = layout or scene_layout(scene)
     sample = get_sample(scene.sample)
     p = scene.pressures()
     scale = layout.um_per_px
     length_max = sample.length_um * max(1.0, float(scene.elongation))
-    n_points = int(math.ceil(length_max / scale / 0.5)) + 1
+    n_points = int(math.ceil(length_max / scale / 0.9)) + 1
     shapes = ls_shape(sample, p, scene.params(), n_points=n_points)
     z = layout.to_image(shapes.x_um + 1j * shapes.y_um) * scale
     sign = -1.0 if scene.mirror else 1.0
@@ -622,8 +622,8 @@ def render_scene(scene: Scene, out_dir, *, fmt: str = "avi", bit_depth: int = 8,
     }
     with atomic_dir(out_dir) as tmp:
         write_frames(frames(), tmp / FORMATS[fmt], fps=scene.fps, bit_depth=bit_depth)
-        tracks.to_csv(tmp / S.TRUTH_TRACKS_FILE, index=False)
-        lines.to_csv(tmp / S.TRUTH_CENTRELINES_FILE, index=False)
+        tracks.to_csv(tmp / S.TRUTH_TRACKS_FILE, index=False, float_format="%.9g")
+        lines.to_csv(tmp / S.TRUTH_CENTRELINES_FILE, index=False, float_format="%.8g")
         pressure.to_csv(tmp / S.PRESSURE_FILE, index=False)
         (tmp / S.SCENE_FILE).write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
     return out_dir

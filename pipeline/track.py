@@ -26,12 +26,22 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .centreline import Curve, evaluate, fit_to_polyline, make_basis, n_coef_for, n_grid_for
+from .centreline import (
+    Curve,
+    evaluate,
+    fit_to_polyline,
+    make_basis,
+    n_coef_for,
+    n_grid_for,
+    tip_point,
+)
 from .refine import Refined, TubeLook, locate_base, refine, self_contact
 from .segment import detect
 
 #: Profiles that must hold a valid edge pair for a fit to be accepted.
 MIN_VALID = 0.7
+#: ... of the profiles not dropped because the tube crosses itself there.
+MIN_COVERAGE = 0.3
 
 
 @dataclass(frozen=True)
@@ -159,7 +169,9 @@ def _crop_box(curve: Curve, margin: float, shape):
 
 
 def _good(r: Refined, look: TubeLook) -> bool:
-    return (r.valid_fraction >= MIN_VALID and r.tip_found
+    # at a crossing the spline bridges the dropped profiles from both sides, as
+    # long as most of the tube is still seen
+    return (r.valid_fraction >= MIN_VALID and r.coverage >= MIN_COVERAGE and r.tip_found
             and r.residual_px <= max(0.5, 0.08 * look.mean_half_width))
 
 
@@ -215,7 +227,13 @@ def _track_one(index, frame, look, history, base_hint):
     pred = _predict(history)
     crossing = self_contact(pred, hw)
     # fast: refine the prediction inside the region it can occupy
-    r0, r1, c0, c1 = _crop_box(pred, 3 * hw + 8, frame.shape)
+    # the crop must hold where the tube can have moved: twice the last step's
+    # tip motion (or a fifth of the length before a velocity is known)
+    if len(history) >= 2:
+        motion = 2 * abs(tip_point(history[-1]) - tip_point(history[-2]))
+    else:
+        motion = 0.2 * pred.length
+    r0, r1, c0, c1 = _crop_box(pred, 3 * hw + 8 + motion, frame.shape)
     crop = as_float(frame[r0:r1, c0:c1])
     # without a velocity yet (second frame after a start) the prediction is only
     # the last shape: give Gauss–Newton more rounds
@@ -243,7 +261,8 @@ def _track_one(index, frame, look, history, base_hint):
                     r = cand
             stage = "redetect"
     if not _good(r, look):
-        reason = ("lost: edges not found along the tube" if r.valid_fraction < MIN_VALID
+        reason = ("lost: the tube hides too much of itself" if r.coverage < MIN_COVERAGE
+                  else "lost: edges not found along the tube" if r.valid_fraction < MIN_VALID
                   else "lost: tip not found" if not r.tip_found
                   else "lost: edges do not fit a smooth tube")
         return FrameTrack(index, reason, None, stage, r.residual_px, r.valid_fraction, work)
