@@ -109,7 +109,8 @@ def _profile_layout(curve: Curve, look: TubeLook, n_grid: int, window: float, wi
 def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0),
            window: float | None = None, iterations: int = 3, width_tol: float = 0.2,
            fit_length: bool = True, tol_px: float = 0.02, smoothing: float = 1e-3,
-           free_base: bool = False, avoid_contact: bool = False) -> Refined:
+           free_base: bool = False, avoid_contact: bool = False,
+           tip_window: float | None = None) -> Refined:
     """Fit ``curve`` to the tube in ``image``, starting from the curve itself.
 
     Parameters
@@ -147,6 +148,9 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
         another part of the same tube (a crossing or a touching coil), so
         that the other layer's edges cannot be taken for this one's. The fit
         then bridges the crossing with the spline, from both sides.
+    tip_window : float, optional
+        How far from the curve's end to look for the tube's end, px (default:
+        the side window plus half a width; wider when the length is rough).
     """
     hw = look.mean_half_width
     window = 0.5 * hw if window is None else window
@@ -194,7 +198,7 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
         tip_found = False
         if fit_length:
             tip_off, tip_found = _tip_offset(image, smp, shift, look, window, step,
-                                             nearest=avoid_contact)
+                                             nearest=avoid_contact, tip_window=tip_window)
             if tip_found:
                 # the end sets the length only (ΔL = how far the tube's end lies
                 # beyond the curve's, along the tangent); the shape is the side
@@ -204,7 +208,8 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
                 row = np.zeros(n_par)
                 row[k] = w_tip
                 a_rows.append(row[None, :])
-                b_rows.append(np.array([w_tip * np.clip(tip_off, -window, window)]))
+                cap = window if tip_window is None else tip_window
+                b_rows.append(np.array([w_tip * np.clip(tip_off, -cap, cap)]))
         a_mat = np.concatenate(a_rows)
         b_vec = np.concatenate(b_rows)
         lhs = a_mat.T @ a_mat
@@ -246,7 +251,7 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
 
 
 def _tip_offset(image, smp, shift, look: TubeLook, window: float, step: float, *,
-                nearest: bool = False):
+                nearest: bool = False, tip_window: float | None = None):
     """Offset of the tube's end from the curve's end along the tip tangent, px."""
     hw = look.mean_half_width
     tangent = smp.tangent[-1]
@@ -254,10 +259,11 @@ def _tip_offset(image, smp, shift, look: TubeLook, window: float, step: float, *
     # across the whole end face: a hollow tube's end is strongest near its walls
     lateral = np.array([-0.7, -0.4, 0.0, 0.4, 0.7]) * hw
     starts = smp.z[-1] - shift + normal * lateral
-    half = window + hw + 3.0
+    reach = window + 0.5 * hw if tip_window is None else tip_window
+    half = reach + 0.5 * hw + 3.0
     offsets = np.arange(-np.ceil(half / step), np.ceil(half / step) + 1) * step
     prof = sample_lines(image, starts, np.full(lateral.size, tangent), offsets)
-    off, strength = end_edge(prof, step, polarity=look.polarity, window=window + 0.5 * hw,
+    off, strength = end_edge(prof, step, polarity=look.polarity, window=reach,
                              nearest=nearest)
     good = np.isfinite(off) & (strength > 0.25 * look.strength)
     if good.sum() < 2:

@@ -140,8 +140,11 @@ def initialise(image: np.ndarray, *, base_hint=None):
     # the base tangent is measured once, here, with a strong roughness penalty so
     # that φ(0) follows the whole tube rather than the few profiles by the base
     for width_tol in (0.3, 0.2):
+        # the skeleton's length is rough (dust, the end's extension): if the tip was
+        # not where the curve ends, search wider for it
+        wide_tip = None if r.tip_found else 2.0 * look.mean_half_width
         r = refine(image, r.curve, look, iterations=8, width_tol=width_tol, free_base=True,
-                   smoothing=0.1)
+                   smoothing=0.1, tip_window=wide_tip)
         look = TubeLook(polarity, _learn_widths(r, 9, look.mean_half_width), r.strength)
     if base_hint is None:
         r = replace(r, curve=locate_base(image, r.curve, look))
