@@ -1,14 +1,19 @@
 """Reading and writing frame sequences: videos, image folders, multi-page TIFFs.
 
 Frames are streamed one at a time (memory stays flat in the number of frames)
-as 2-D greyscale arrays in their native dtype (uint8, uint16 or float).
-Every problem with the input raises :class:`FrameError` with one line naming
-the file and what is wrong.
+as 2-D greyscale arrays in their native dtype (uint8, uint16 or float32).
+Colour input is converted to grey by luminance. Every problem with the input
+raises :class:`FrameError` with one line naming the file and what is wrong.
+
+Writers (:func:`write_frames`) are atomic: the output appears complete or not
+at all, whatever happens to the frame iterable midway.
 """
 
 from __future__ import annotations
 
+import json
 import re
+import weakref
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
@@ -17,294 +22,524 @@ import numpy as np
 
 from .atomic import atomic_dir, atomic_path
 
-IMAGE_SUFFIXES = {".png", ".tif", ".tiff", ".jpg", ".jpeg", ".bmp"}
-TIFF_SUFFIXES = {".tif", ".tiff"}
-VIDEO_SUFFIXES = {".avi", ".mp4", ".mov", ".mkv", ".m4v", ".mpg", ".mpeg", ".wmv", ".webm"}
+IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".jpg", ".jpeg", ".bmp")
+TIFF_SUFFIXES = (".tif", ".tiff")
+VIDEO_SUFFIXES = (".avi", ".mp4", ".mov", ".mkv", ".m4v", ".mpg", ".mpeg", ".wmv", ".webm",
+                  ".flv", ".ogv", ".mjpeg", ".mjpg")
+WRITE_VIDEO_FOURCC = {".avi": "MJPG", ".mp4": "mp4v"}
+FRAME_NAME = "frame_{:05d}.png"
+_FRAME_NAME_RE = re.compile(r"frame_\d{5,}\.png")
+
+# IMREAD_UNCHANGED keeps 16-bit depth and the alpha channel; EXIF rotation is
+# deliberately not applied, so frames match the sensor's pixel grid.
+_IMREAD_FLAGS = cv2.IMREAD_UNCHANGED
 
 
 class FrameError(ValueError):
-    """Unreadable, missing or inconsistent frame input."""
+    """Unreadable, missing or inconsistent frame input (or unwritable output)."""
 
+
+# --------------------------------------------------------------------------- helpers
 
 def _natural_key(path: Path):
-    return [int(t) if t.isdigit() else t.lower() for t in re.split(r"(\d+)", path.name)]
+    """Sort key under which ``frame2`` comes before ``frame10``."""
+    return [(0, int(t), "") if t.isdigit() else (1, 0, t.lower())
+            for t in re.split(r"(\d+)", path.name)]
 
 
-def _to_grey(img: np.ndarray, where: str) -> np.ndarray:
+def _to_grey(img: np.ndarray, where: str, *, rgb: bool = False) -> np.ndarray:
+    """2-D grey frame from a grey, grey+alpha, BGR(A) or (``rgb=True``) RGB(A) image."""
     if img.ndim == 2:
         return img
-    if img.ndim == 3 and img.shape[2] == 1:
-        return img[:, :, 0]
-    if img.ndim == 3 and img.shape[2] in (3, 4):
-        code = cv2.COLOR_BGR2GRAY if img.shape[2] == 3 else cv2.COLOR_BGRA2GRAY
-        if img.dtype not in (np.uint8, np.uint16, np.float32):
-            img = img.astype(np.float32)
-        return cv2.cvtColor(img, code)
-    raise FrameError(f"{where}: unsupported image layout {img.shape}")
+    if img.ndim != 3 or img.shape[2] not in (1, 2, 3, 4):
+        raise FrameError(f"{where}: unsupported image layout {img.shape} "
+                         "(expected rows x cols, optionally x 1-4 channels)")
+    channels = img.shape[2]
+    if channels <= 2:  # grey, or grey + alpha: the alpha carries no brightness
+        return np.ascontiguousarray(img[:, :, 0])
+    if img.dtype not in (np.uint8, np.uint16, np.float32):
+        img = img.astype(np.float32)
+    if rgb:
+        code = cv2.COLOR_RGB2GRAY if channels == 3 else cv2.COLOR_RGBA2GRAY
+    else:
+        code = cv2.COLOR_BGR2GRAY if channels == 3 else cv2.COLOR_BGRA2GRAY
+    return cv2.cvtColor(img, code)
 
 
-def _check_dtype(img: np.ndarray, where: str) -> np.ndarray:
+def _native_dtype(img: np.ndarray, where: str) -> np.ndarray:
+    """uint8/uint16 as they are; floats as float32; other integers as uint16 if they fit."""
     if img.dtype in (np.uint8, np.uint16):
         return img
+    if img.dtype == bool:
+        return img.astype(np.uint8) * np.uint8(255)
     if np.issubdtype(img.dtype, np.floating):
         if not np.all(np.isfinite(img)):
             raise FrameError(f"{where}: image holds NaN or infinite values")
         return img.astype(np.float32, copy=False)
     if np.issubdtype(img.dtype, np.integer):
-        return np.clip(img, 0, 65535).astype(np.uint16)
-    if img.dtype == bool:
-        return img.astype(np.uint8) * 255
+        # silently clipping e.g. int16 or 32-bit counts would corrupt intensities
+        lo, hi = int(img.min()), int(img.max())
+        if lo < 0 or hi > 65535:
+            raise FrameError(f"{where}: {img.dtype} pixel values {lo}..{hi} do not fit 0..65535")
+        return img.astype(np.uint16)
     raise FrameError(f"{where}: unsupported pixel type {img.dtype}")
 
 
-def _read_image(path: Path) -> np.ndarray:
+def _tiff_page(page, where: str) -> np.ndarray:
+    """One TIFF page as a native-dtype grey frame."""
+    try:
+        img = page.asarray()
+    except Exception as exc:  # tifffile raises many types on corrupt data
+        raise FrameError(f"{where}: unreadable TIFF page ({type(exc).__name__}: "
+                         f"{_one_line(exc)})") from None
+    if img.ndim == 3 and getattr(page, "axes", "").startswith("S"):
+        img = np.moveaxis(img, 0, -1)  # planar (separate) samples -> channels last
+    return _native_dtype(_to_grey(img, where, rgb=True), where)
+
+
+def _read_image(path: Path, where: str) -> np.ndarray:
+    """A single image file as a native-dtype grey frame (first page of a TIFF)."""
     if path.suffix.lower() in TIFF_SUFFIXES:
         import tifffile
 
         try:
-            img = tifffile.imread(path, key=0)
-        except Exception as exc:  # tifffile raises many types on corrupt files
-            raise FrameError(f"{path}: not a readable TIFF ({type(exc).__name__})") from None
-        if img.ndim == 3 and img.shape[2] in (3, 4):
-            img = img[:, :, ::-1] if img.shape[2] == 3 else img[:, :, [2, 1, 0, 3]]
-    else:
-        img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-        if img is None:
-            raise FrameError(f"{path}: not a readable image")
-    return _check_dtype(_to_grey(img, str(path)), str(path))
+            with tifffile.TiffFile(path) as tif:
+                if not len(tif.pages):
+                    raise FrameError(f"{where}: the TIFF holds no pages")
+                return _tiff_page(tif.pages[0], where)
+        except FrameError:
+            raise
+        except Exception as exc:
+            raise FrameError(f"{where}: not a readable TIFF ({type(exc).__name__})") from None
+    try:
+        img = cv2.imread(str(path), _IMREAD_FLAGS)
+    except cv2.error:
+        img = None
+    if img is None:  # cv2.imread reports failure by returning None, not raising
+        size = _size(path)
+        why = "empty file (0 bytes)" if size == 0 else "not a readable image"
+        raise FrameError(f"{where}: {why}")
+    return _native_dtype(_to_grey(img, where), where)
 
+
+def _size(path: Path) -> int | None:
+    try:
+        return path.stat().st_size
+    except OSError:
+        return None
+
+
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split())[:200]
+
+
+def _tiff_fps(tif) -> float | None:
+    """Frame rate from ImageJ (``fps``/``finterval``) or our own JSON description."""
+    meta = {}
+    try:
+        if tif.is_imagej and tif.imagej_metadata:
+            meta = dict(tif.imagej_metadata)
+            if "fps" not in meta and meta.get("finterval"):
+                meta["fps"] = 1.0 / float(meta["finterval"])
+        elif tif.pages[0].is_shaped:
+            meta = json.loads(tif.pages[0].description)
+    except (ValueError, TypeError, ZeroDivisionError, KeyError):
+        return None  # metadata is a bonus: a malformed tag must not stop reading
+    return _valid_fps(meta.get("fps") if isinstance(meta, dict) else None)
+
+
+def _valid_fps(value) -> float | None:
+    try:
+        fps = float(value)
+    except (TypeError, ValueError):
+        return None
+    return fps if np.isfinite(fps) and 0 < fps < 1e6 else None
+
+
+# --------------------------------------------------------------------------- reading
 
 class FrameReader:
-    """An iterable of greyscale frames; use :func:`open_frames` to make one.
+    """An iterable of 2-D greyscale frames; make one with :func:`open_frames`.
+
+    Frames are decoded one at a time while iterating. Every ``iter(reader)``
+    starts again from the first frame (the file is re-opened), so a reader can
+    be iterated any number of times. Using the reader as a context manager
+    closes any iteration still in progress on exit.
 
     Attributes
     ----------
     source : Path
-    kind : str
-        "video", "folder", "tiff" or "image".
+        The file or folder that was opened.
+    kind : {"video", "folder", "tiff", "image"}
     fps : float or None
-        Frame rate when the file carries one.
-    frame_shape : (rows, cols)
-    dtype : numpy dtype
+        Frame rate when the source records one (videos; ImageJ or
+        :func:`write_frames` TIFFs), else None.
+    frame_shape : tuple of int
+        ``(rows, cols)`` of the first frame.
+    dtype : numpy.dtype
+        Pixel type of the first frame: uint8, uint16 or float32.
     """
 
-    def __init__(self, source: Path, kind: str, count: int, fps, first: np.ndarray,
-                 files: list[Path] | None = None):
+    def __init__(self, source: Path, kind: str, count: int, fps: float | None,
+                 first: np.ndarray, files: list[Path] | None = None):
         self.source = source
         self.kind = kind
-        self._count = count
         self.fps = fps
-        self.frame_shape = first.shape
+        self.frame_shape = tuple(first.shape)
         self.dtype = first.dtype
+        self._count = count
         self._files = files
+        self._live = weakref.WeakSet()
 
     def __len__(self) -> int:
+        """Number of frames; for videos the container's count (best effort)."""
         return self._count
 
-    def __enter__(self):
+    def __repr__(self) -> str:
+        return (f"FrameReader({str(self.source)!r}, kind={self.kind!r}, frames={self._count}, "
+                f"shape={self.frame_shape}, dtype={self.dtype}, fps={self.fps})")
+
+    def __enter__(self) -> FrameReader:
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc) -> bool:
+        self.close()
         return False
+
+    def close(self) -> None:
+        """Stop iterations in progress, releasing their open files."""
+        for gen in list(self._live):
+            gen.close()
 
     def __iter__(self) -> Iterator[np.ndarray]:
         if self.kind == "video":
-            yield from self._iter_video()
+            gen = self._iter_video()
         elif self.kind == "tiff":
-            yield from self._iter_tiff()
+            gen = self._iter_tiff()
         else:
-            for i, path in enumerate(self._files):
-                img = _read_image(path)
-                if img.shape != self.frame_shape:
-                    raise FrameError(f"{path}: frame {i} is {img.shape[1]}x{img.shape[0]} px, "
-                                     f"the first is {self.frame_shape[1]}x"
-                                     f"{self.frame_shape[0]}")
-                yield img
+            gen = self._iter_files()
+        self._live.add(gen)
+        return gen
 
-    def _iter_video(self):
+    def _check(self, img: np.ndarray, where: str) -> np.ndarray:
+        if img.shape != self.frame_shape:
+            raise FrameError(f"{where}: frame is {img.shape[0]}x{img.shape[1]} (rows x cols), "
+                             f"the first is {self.frame_shape[0]}x{self.frame_shape[1]}")
+        if img.dtype != self.dtype:
+            raise FrameError(f"{where}: pixels are {img.dtype}, the first frame's are "
+                             f"{self.dtype}")
+        return img
+
+    def _iter_files(self) -> Iterator[np.ndarray]:
+        n = len(self._files)
+        for i, path in enumerate(self._files):
+            where = f"{path} (image {i} of {n})" if self.kind == "folder" else str(path)
+            yield self._check(_read_image(path, where), where)
+
+    def _iter_tiff(self) -> Iterator[np.ndarray]:
+        import tifffile
+
+        try:
+            tif = tifffile.TiffFile(self.source)
+        except Exception as exc:
+            raise FrameError(f"{self.source}: not a readable TIFF ({type(exc).__name__})") \
+                from None
+        with tif:
+            # iterating TiffPages with its cache off keeps no decoded page alive
+            tif.pages.cache = False
+            for i, page in enumerate(tif.pages):
+                where = f"{self.source} (page {i})"
+                yield self._check(_tiff_page(page, where), where)
+
+    def _iter_video(self) -> Iterator[np.ndarray]:
         cap = cv2.VideoCapture(str(self.source))
         try:
+            if not cap.isOpened():
+                raise FrameError(f"{self.source}: the video can no longer be opened")
             i = 0
             while True:
                 ok, img = cap.read()
-                if not ok:
-                    break
-                yield _to_grey(img, f"{self.source} frame {i}")
+                if not ok or img is None:
+                    break  # end of stream; a truncated file simply ends early
+                yield self._check(_to_grey(img, f"{self.source} (frame {i})"),
+                                  f"{self.source} (frame {i})")
                 i += 1
             if i == 0:
-                raise FrameError(f"{self.source}: the video holds no readable frames")
+                raise FrameError(f"{self.source}: no frames could be decoded")
         finally:
             cap.release()
-
-    def _iter_tiff(self):
-        import tifffile
-
-        with tifffile.TiffFile(self.source) as tif:
-            for i, page in enumerate(tif.pages):
-                try:
-                    img = page.asarray()
-                except Exception as exc:
-                    raise FrameError(f"{self.source}: page {i} is unreadable "
-                                     f"({type(exc).__name__})") from None
-                if img.ndim == 3 and img.shape[2] == 3:
-                    img = img[:, :, ::-1]
-                yield _check_dtype(_to_grey(img, f"{self.source} page {i}"),
-                                   f"{self.source} page {i}")
 
 
 def open_frames(source) -> FrameReader:
     """Open a video, a folder of images, a multi-page TIFF or a single image.
 
+    Only the first frame is decoded here (for ``frame_shape`` and ``dtype``);
+    the rest are decoded lazily while iterating, so a later unreadable or
+    mis-shaped frame raises :class:`FrameError` from the iteration.
+
     Parameters
     ----------
     source : str or Path
-        A video OpenCV can read (AVI, MP4, …); a folder of PNG/TIFF/JPEG/BMP
-        images, taken in natural name order (frame2 before frame10; other
-        files ignored); a TIFF with one or more pages; or one image.
+        A video OpenCV can read (.avi, .mp4, .mov, .mkv, ...); a folder of
+        PNG/TIFF/JPEG/BMP images, taken in natural name order (``frame2``
+        before ``frame10``; other files and hidden files are ignored); a TIFF
+        with one or more pages (read page by page); or one image file.
 
     Returns
     -------
     FrameReader
-        Iterable of 2-D frames (native dtype), with ``len``, ``fps`` and
-        ``frame_shape``; also a context manager.
+        Iterable of (rows, cols) frames in their native dtype (uint8, uint16
+        or float32), with ``len``, ``fps``, ``frame_shape``, ``dtype`` and
+        ``source``; also a context manager.
 
     Raises
     ------
     FrameError
-        Missing, empty, unreadable or inconsistent input (one line).
+        Missing, empty, unsupported, unreadable or inconsistent input.
     """
     path = Path(source)
-    if not path.exists():
-        raise FrameError(f"{path}: no such file or folder")
-    if path.is_dir():
-        files = sorted((p for p in path.iterdir()
-                        if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES
-                        and not p.name.startswith(".")), key=_natural_key)
-        if not files:
-            raise FrameError(f"{path}: the folder holds no images "
-                             f"({', '.join(sorted(IMAGE_SUFFIXES))})")
-        first = _read_image(files[0])
-        return FrameReader(path, "folder", len(files), None, first, files)
-    if path.stat().st_size == 0:
-        raise FrameError(f"{path}: the file is empty (0 bytes)")
+    try:
+        if not path.exists():
+            raise FrameError(f"{path}: no such file or folder")
+        if path.is_dir():
+            return _open_folder(path)
+        if path.stat().st_size == 0:
+            raise FrameError(f"{path}: empty file (0 bytes)")
+    except OSError as exc:
+        raise FrameError(f"{path}: cannot be read ({_one_line(exc)})") from None
     suffix = path.suffix.lower()
     if suffix in TIFF_SUFFIXES:
-        import tifffile
-
-        try:
-            with tifffile.TiffFile(path) as tif:
-                count = len(tif.pages)
-                first = tif.pages[0].asarray() if count else None
-        except Exception as exc:
-            raise FrameError(f"{path}: not a readable TIFF ({type(exc).__name__})") from None
-        if not count:
-            raise FrameError(f"{path}: the TIFF holds no pages")
-        if first.ndim == 3 and first.shape[2] == 3:
-            first = first[:, :, ::-1]
-        first = _check_dtype(_to_grey(first, str(path)), str(path))
-        return FrameReader(path, "tiff", count, None, first)
+        return _open_tiff(path)
     if suffix in IMAGE_SUFFIXES:
-        first = _read_image(path)
-        return FrameReader(path, "folder", 1, None, first, [path])
-    if suffix not in VIDEO_SUFFIXES:
-        raise FrameError(f"{path}: unsupported file type {suffix or '(none)'}: give a video "
-                         "(.avi, .mp4, ...), a TIFF, an image or a folder of images")
-    cap = cv2.VideoCapture(str(path))
+        return FrameReader(path, "image", 1, None, _read_image(path, str(path)), [path])
+    if suffix in VIDEO_SUFFIXES:
+        return _open_video(path)
+    raise FrameError(f"{path}: unsupported file type {suffix or '(no suffix)'}: give a video "
+                     f"({', '.join(VIDEO_SUFFIXES[:4])}, ...), an image, a TIFF stack or a "
+                     "folder of images")
+
+
+def _open_folder(path: Path) -> FrameReader:
+    files = sorted((p for p in path.iterdir()
+                    if p.suffix.lower() in IMAGE_SUFFIXES and not p.name.startswith(".")
+                    and p.is_file()), key=_natural_key)
+    if not files:
+        raise FrameError(f"{path}: the folder holds no images "
+                         f"({', '.join(IMAGE_SUFFIXES)})")
+    first = _read_image(files[0], f"{files[0]} (image 0 of {len(files)})")
+    return FrameReader(path, "folder", len(files), None, first, files)
+
+
+def _open_tiff(path: Path) -> FrameReader:
+    import tifffile
+
     try:
+        with tifffile.TiffFile(path) as tif:
+            count = len(tif.pages)  # walks the page directory only, no pixel data
+            if not count:
+                raise FrameError(f"{path}: no frames (the TIFF holds no pages)")
+            first = _tiff_page(tif.pages[0], f"{path} (page 0)")
+            fps = _tiff_fps(tif)
+    except FrameError:
+        raise
+    except Exception as exc:  # tifffile raises many types on corrupt files
+        raise FrameError(f"{path}: not a readable TIFF ({type(exc).__name__}: "
+                         f"{_one_line(exc)})") from None
+    return FrameReader(path, "tiff", count, fps, first)
+
+
+def _open_video(path: Path) -> FrameReader:
+    cap = None
+    try:
+        cap = cv2.VideoCapture(str(path))
         if not cap.isOpened():
-            raise FrameError(f"{path}: not a readable video (corrupt, or a codec OpenCV "
+            raise FrameError(f"{path}: not a readable video (corrupt, or a codec this OpenCV "
                              "lacks)")
         ok, img = cap.read()
         if not ok or img is None:
-            raise FrameError(f"{path}: the video holds no readable frames")
-        count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
-        fps = float(cap.get(cv2.CAP_PROP_FPS))
+            raise FrameError(f"{path}: no frames (the video opens but its first frame cannot "
+                             "be decoded)")
+        count = cap.get(cv2.CAP_PROP_FRAME_COUNT)
+        fps = _valid_fps(cap.get(cv2.CAP_PROP_FPS))
+    except cv2.error as exc:
+        raise FrameError(f"{path}: not a readable video ({_one_line(exc)})") from None
     finally:
-        cap.release()
-    fps = fps if np.isfinite(fps) and 0 < fps < 1e5 else None
-    first = _to_grey(img, str(path))
-    return FrameReader(path, "video", max(count, 0), fps, first)
+        if cap is not None:
+            cap.release()
+    # containers may report -1, 0 or NaN frames (e.g. streams without an index)
+    count = int(count) if np.isfinite(count) and count > 0 else 0
+    first = _to_grey(img, f"{path} (frame 0)")
+    return FrameReader(path, "video", max(count, 1), fps, first)
 
 
 def to_float(frame: np.ndarray) -> np.ndarray:
-    """A frame as float32 in [0, 1] (integers scaled by their type's maximum)."""
+    """A frame as float32 in [0, 1], integers scaled by their type's maximum.
+
+    Parameters
+    ----------
+    frame : ndarray of uint8, uint16 or float
+        uint8 is divided by 255, uint16 by 65535; floats pass through as
+        float32 (not clipped).
+
+    Returns
+    -------
+    ndarray of float32
+        Same shape as ``frame``.
+    """
+    frame = np.asarray(frame)
     if frame.dtype == np.uint8:
-        return frame.astype(np.float32) * np.float32(1 / 255)
+        return frame.astype(np.float32) / np.float32(255)
     if frame.dtype == np.uint16:
-        return frame.astype(np.float32) * np.float32(1 / 65535)
-    return frame.astype(np.float32, copy=False)
+        return frame.astype(np.float32) / np.float32(65535)
+    if np.issubdtype(frame.dtype, np.floating):
+        return frame.astype(np.float32, copy=False)
+    raise FrameError(f"to_float: unsupported pixel type {frame.dtype} "
+                     "(expected uint8, uint16 or float)")
 
 
-def _to_int(frame: np.ndarray, bit_depth: int) -> np.ndarray:
-    top = 255 if bit_depth == 8 else 65535
+# --------------------------------------------------------------------------- writing
+
+def _as_int(frame, i: int, path: Path, bit_depth: int, shape) -> np.ndarray:
+    """Validate one output frame and convert it to uint8/uint16 per ``bit_depth``."""
+    frame = np.asarray(frame)
+    where = f"{path}: frame {i}"
+    if frame.ndim != 2 or frame.size == 0:
+        raise FrameError(f"{where} has shape {frame.shape}; expected a non-empty 2-D grey frame")
+    if shape is not None and frame.shape != shape:
+        raise FrameError(f"{where} is {frame.shape[0]}x{frame.shape[1]} (rows x cols), "
+                         f"frame 0 is {shape[0]}x{shape[1]}")
     dtype = np.uint8 if bit_depth == 8 else np.uint16
     if frame.dtype == dtype:
-        return frame
-    if frame.dtype in (np.uint8, np.uint16):
-        return (to_float(frame) * top).round().astype(dtype)
-    return (np.clip(frame, 0, 1) * top).round().astype(dtype)
+        return np.ascontiguousarray(frame)
+    if frame.dtype == np.uint8:  # -> 16 bit: 255 * 257 == 65535, exact
+        return frame.astype(np.uint16) * np.uint16(257)
+    if frame.dtype == np.uint16:  # -> 8 bit: integer round(x / 257), no float detour
+        return ((frame.astype(np.uint32) + 128) // 257).astype(np.uint8)
+    if np.issubdtype(frame.dtype, np.floating):
+        if not np.all(np.isfinite(frame)):
+            raise FrameError(f"{where} holds NaN or infinite values")
+        top = frame.dtype.type(255 if bit_depth == 8 else 65535)
+        return np.rint(np.clip(frame, 0, 1) * top).astype(dtype)
+    raise FrameError(f"{where} has pixel type {frame.dtype}; expected float in [0, 1], "
+                     "uint8 or uint16")
+
+
+def _numbered(frames: Iterable, path: Path, bit_depth: int) -> Iterator[np.ndarray]:
+    """Validated integer frames; raises if there are none."""
+    shape = None
+    i = -1
+    for i, frame in enumerate(frames):
+        img = _as_int(frame, i, path, bit_depth, shape)
+        shape = img.shape
+        yield img
+    if i < 0:
+        raise FrameError(f"{path}: no frames to write")
 
 
 def write_frames(frames: Iterable[np.ndarray], path, *, fps: float = 10.0,
                  bit_depth: int = 8) -> Path:
-    """Write frames atomically; the format follows the path.
+    """Write a sequence of grey frames atomically; the format follows the path.
 
     Parameters
     ----------
-    frames : iterable of 2-D arrays
-        Floats in [0, 1] (clipped) or uint8/uint16.
+    frames : iterable of (rows, cols) ndarray
+        Floats in [0, 1] (clipped, then ``round(x * max)``), or uint8/uint16
+        (rescaled when ``bit_depth`` differs). Consumed once, streamed.
     path : str or Path
-        ``.avi`` (MJPG), ``.mp4`` (mp4v), ``.tif``/``.tiff`` (multi-page), or a
-        folder (no suffix) of ``frame_00000.png`` …
+        ``.avi`` (MJPG), ``.mp4`` (mp4v), ``.tif``/``.tiff`` (multi-page,
+        zlib-compressed, lossless), or a path with no suffix / an existing
+        folder: a folder of ``frame_00000.png``, ``frame_00001.png``, ...
+        Missing parent folders are created.
     fps : float
-        Frame rate stored in videos.
+        Frame rate stored in videos and in the TIFF description.
     bit_depth : {8, 16}
-        16 for PNG and TIFF only.
+        Bits per pixel; 16 only for PNG folders and TIFF.
+
+    Returns
+    -------
+    Path
+        ``path``, now complete. On any error nothing is left at ``path`` (an
+        existing output there is kept) and the temporary is removed.
+
+    Raises
+    ------
+    FrameError
+        Bad options, bad frames, no frames, or a format this OpenCV cannot write.
     """
     path = Path(path)
     suffix = path.suffix.lower()
-    if bit_depth not in (8, 16):
-        raise FrameError(f"bit depth must be 8 or 16, got {bit_depth!r}")
-    if suffix in (".avi", ".mp4"):
+    if isinstance(bit_depth, bool) or bit_depth not in (8, 16):
+        raise FrameError(f"{path}: bit depth must be 8 or 16, got {bit_depth!r}")
+    if _valid_fps(fps) is None:
+        raise FrameError(f"{path}: fps must be a positive finite number, got {fps!r}")
+    if path.is_dir() or suffix == "":
+        return _write_folder(frames, path, bit_depth)
+    if suffix in WRITE_VIDEO_FOURCC:
         if bit_depth != 8:
-            raise FrameError(f"{path}: videos are 8-bit; write PNG or TIFF for 16-bit frames")
-        return _write_video(frames, path, fps)
+            raise FrameError(f"{path}: videos are 8-bit; write a PNG folder or a TIFF for "
+                             "16-bit frames")
+        return _write_video(frames, path, float(fps))
     if suffix in TIFF_SUFFIXES:
-        import tifffile
+        return _write_tiff(frames, path, float(fps), bit_depth)
+    raise FrameError(f"{path}: unknown output format {suffix}: use .avi, .mp4, .tif, .tiff "
+                     "or a folder name (no suffix)")
 
-        with atomic_path(path) as tmp, tifffile.TiffWriter(tmp) as tif:
-            for frame in frames:
-                tif.write(_to_int(frame, bit_depth), contiguous=False, compression="zlib")
-        return path
-    if suffix == "":
-        with atomic_dir(path) as tmp:
-            for i, frame in enumerate(frames):
-                if not cv2.imwrite(str(tmp / f"frame_{i:05d}.png"), _to_int(frame, bit_depth)):
-                    raise FrameError(f"{path}: could not write frame {i}")
-        return path
-    raise FrameError(f"{path}: unknown output format {suffix}: use .avi, .mp4, .tif or a "
-                     "folder name")
+
+def _write_folder(frames, path: Path, bit_depth: int) -> Path:
+    if path.exists() and not path.is_dir():
+        raise FrameError(f"{path}: exists and is not a folder")
+    if path.is_dir():
+        # the folder is replaced as a whole: never take user files down with it
+        others = [p.name for p in path.iterdir() if not _FRAME_NAME_RE.fullmatch(p.name)]
+        if others:
+            raise FrameError(f"{path}: the folder holds other files ({others[0]}, ...); "
+                             "refusing to replace it")
+    with atomic_dir(path) as tmp:
+        for i, img in enumerate(_numbered(frames, path, bit_depth)):
+            if not cv2.imwrite(str(tmp / FRAME_NAME.format(i)), img):
+                raise FrameError(f"{path}: could not write frame {i} as PNG")
+    return path
+
+
+def _write_tiff(frames, path: Path, fps: float, bit_depth: int) -> Path:
+    import tifffile
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_path(path) as tmp, tifffile.TiffWriter(tmp) as tif:
+        for i, img in enumerate(_numbered(frames, path, bit_depth)):
+            # one page per frame (contiguous=False) so readers can stream pages;
+            # the first page's JSON description carries the frame rate
+            tif.write(img, contiguous=False, compression="zlib",
+                      metadata={"fps": fps} if i == 0 else None)
+    return path
+
+
+def _open_writer(tmp: Path, path: Path, fps: float, size: tuple[int, int]):
+    """A grey VideoWriter (or a colour one fed BGR, if grey is refused), and its mode."""
+    fourcc = cv2.VideoWriter_fourcc(*WRITE_VIDEO_FOURCC[path.suffix.lower()])
+    for is_color in (False, True):
+        writer = cv2.VideoWriter(str(tmp), fourcc, fps, size, isColor=is_color)
+        if writer.isOpened():
+            # honoured by OpenCV's own MJPEG encoder, ignored (False) by FFmpeg's
+            writer.set(cv2.VIDEOWRITER_PROP_QUALITY, 95)
+            return writer, is_color
+        writer.release()
+    raise FrameError(f"{path}: this OpenCV cannot write {path.suffix.lstrip('.').upper()} "
+                     f"({WRITE_VIDEO_FOURCC[path.suffix.lower()]}) video")
 
 
 def _write_video(frames, path: Path, fps: float) -> Path:
-    fourcc = cv2.VideoWriter_fourcc(*("MJPG" if path.suffix.lower() == ".avi" else "mp4v"))
+    path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(path) as tmp:
         writer = None
         try:
-            for frame in frames:
-                img = _to_int(frame, 8)
+            for img in _numbered(frames, path, 8):
                 if writer is None:
-                    size = (img.shape[1], img.shape[0])
-                    writer = cv2.VideoWriter(str(tmp), fourcc, float(fps), size, isColor=False)
-                    if not writer.isOpened():
-                        raise FrameError(f"{path}: this OpenCV cannot write "
-                                         f"{path.suffix.lstrip('.').upper()} video")
-                    if hasattr(cv2, "VIDEOWRITER_PROP_QUALITY"):
-                        writer.set(cv2.VIDEOWRITER_PROP_QUALITY, 95)
-                writer.write(img)
-            if writer is None:
-                raise FrameError(f"{path}: no frames to write")
+                    writer, is_color = _open_writer(tmp, path, fps, (img.shape[1], img.shape[0]))
+                writer.write(cv2.cvtColor(img, cv2.COLOR_GRAY2BGR) if is_color else img)
         finally:
             if writer is not None:
                 writer.release()
+        if tmp.stat().st_size == 0:
+            raise FrameError(f"{path}: the video writer produced an empty file")
     return path
