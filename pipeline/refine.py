@@ -18,6 +18,10 @@ import numpy as np
 from .centreline import Curve, evaluate, jacobian, make_basis, n_grid_for
 from .profiles import edge_pairs, end_edge, sample_lines
 
+#: Edge-midpoint scatter (px) up to which the roughness penalty keeps its
+#: nominal weight; noisier frames get it scaled by (scatter / this)².
+NOISE_REF_PX = 0.05
+
 
 @dataclass(frozen=True)
 class TubeLook:
@@ -138,6 +142,8 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
         by the trace of both): it damps the poorly observed wobble of the
         last spline span, which would otherwise turn tiny edge noise near the
         tip into tip-angle noise, and leaves arcs of constant curvature alone.
+        Scaled up by (σ / NOISE_REF_PX)² when the edge midpoints scatter by
+        σ > NOISE_REF_PX (robust estimate on each round).
     free_base : bool
         Also fit the base direction φ(0) (through the first B-spline, the
         only one non-zero at the base) and a sideways shift of the base:
@@ -215,8 +221,15 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
         lhs = a_mat.T @ a_mat
         rhs = a_mat.T @ b_vec
         pen = smoothing * np.trace(lhs[:k, :k]) / np.trace(basis.roughness)
+        if valid.sum() >= 8:
+            # a smoothing spline's penalty weighs against the data's variance: on
+            # noisy frames (blur, shot noise, low contrast) the tip tangent, the
+            # least constrained part of the curve, would otherwise follow the noise
+            sig = 1.4826 * np.median(np.abs(delta[valid] - np.median(delta[valid])))
+            pen *= max(sig / NOISE_REF_PX, 1.0) ** 2
         lhs[:k, :k] += pen * basis.roughness
         rhs[:k] -= pen * basis.roughness @ curve.coef
+
         if free_base:
             # the base direction's B_0 joins the penalty: φ(0) then follows the
             # curvature of the rest instead of kinking to fit the first few profiles
@@ -323,15 +336,26 @@ def locate_base(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0,
     prof = sample_lines(image, starts, np.full(s.size, 1j * axis), offsets)
     edges = edge_pairs(prof, 0.5, hw, polarity=look.polarity, window=0.3 * hw,
                        width_tol=0.15, min_strength=0.25 * look.strength)
-    ok = edges.valid.astype(float)
-    if ok.sum() < 4 or ok.all():
+    # each profile's evidence of the tube: its edge step where an edge pair of the
+    # tube's width is found, else 0. Behind the base, noise or the pipette's wall
+    # now and then forms a pair of about that width too, but a weak one: a
+    # yes/no validity would put the base at such a chance pair.
+    score = np.where(edges.valid, edges.strength, 0.0)
+    if edges.valid.sum() < 4 or edges.valid.all():
         return curve
-    # best step from "not the tube" to "the tube" (least-squares change point)
-    c1 = np.cumsum(ok)
-    k = np.arange(1, s.size)
-    # valid profiles before the step plus invalid ones after it
-    cost = c1[k - 1] + ((s.size - k) - (c1[-1] - c1[k - 1]))
-    best = int(k[np.argmin(cost)])
+    # best step from "not the tube" to "the tube": two-level least-squares fit
+    n = s.size
+    k = np.arange(1, n)
+    c1 = np.cumsum(score)
+    c2 = np.cumsum(score**2)
+    mean_before = c1[k - 1] / k
+    mean_after = (c1[-1] - c1[k - 1]) / (n - k)
+    sse = (c2[k - 1] - c1[k - 1] * mean_before) + (c2[-1] - c2[k - 1]
+                                                   - (c1[-1] - c1[k - 1]) * mean_after)
+    sse = np.where(mean_after > mean_before, sse, np.inf)
+    if not np.isfinite(sse).any():
+        return curve
+    best = int(k[np.argmin(sse)])
     s_base = 0.5 * (s[best - 1] + s[best])
     return replace(curve, base=curve.base + s_base * axis,
                    length=max(curve.length - s_base, 2.0))

@@ -275,7 +275,11 @@ def _split_point(width: np.ndarray) -> tuple[int, float]:
     return best, float(after / max(before, 1e-9))
 
 
-def detect(image: np.ndarray, *, base_hint=None) -> Detection | None:
+#: Base sources that a single frame cannot back up (see :mod:`pipeline.motion`).
+AMBIGUOUS_BASE = "skeleton end nearest the border"
+
+
+def detect(image: np.ndarray, *, base_hint=None, base_end=None) -> Detection | None:
     """Find the tube, its base and a rough centreline in one frame.
 
     Parameters
@@ -284,6 +288,9 @@ def detect(image: np.ndarray, *, base_hint=None) -> Detection | None:
         The frame, values in [0, 1].
     base_hint : (col, row), optional
         Where the base is (e.g. from ``--base``), px.
+    base_end : (col, row), optional
+        A point near the base end (e.g. from the motion test): orients the
+        tube, and the base is then found along it as without a hint.
 
     Returns
     -------
@@ -309,9 +316,14 @@ def detect(image: np.ndarray, *, base_hint=None) -> Detection | None:
     path_rc = path_rc.astype(float)
     margin = 2.0 + half_width
     shape = filled.shape
+    # a narrow stretch shorter than a tube width is the skeleton's taper into an
+    # end, not a pipette
+    min_pipette = max(3.0, 2.0 * half_width)
     # orient base → tip
-    if base_hint is not None:
-        hint = np.array([base_hint[1], base_hint[0]], dtype=float) / f
+    orient = base_hint if base_hint is not None else base_end
+    ambiguous = False
+    if orient is not None:
+        hint = np.array([orient[1], orient[0]], dtype=float) / f
         d_first = np.hypot(*(path_rc[0] - hint))
         d_last = np.hypot(*(path_rc[-1] - hint))
         if d_last < d_first:
@@ -322,25 +334,35 @@ def detect(image: np.ndarray, *, base_hint=None) -> Detection | None:
         if last_b and not first_b:
             path_rc, width = path_rc[::-1], width[::-1]
         elif first_b == last_b:
-            # neither (or both) end at the border: the base end is the nearer one
-            def border_dist(p):
-                return min(p[0], p[1], shape[0] - 1 - p[0], shape[1] - 1 - p[1])
-            if border_dist(path_rc[-1]) < border_dist(path_rc[0]):
+            # neither (or both) end at the border: a narrower pipette at one end
+            # says which is held; failing that, the end nearer the border
+            split, ratio = _split_point(width)
+            if ratio < 1 / 1.15 and width.size - split > min_pipette:
                 path_rc, width = path_rc[::-1], width[::-1]
+            elif not (ratio > 1.15 and split > min_pipette):
+                ambiguous = True
+
+                def border_dist(p):
+                    return min(p[0], p[1], shape[0] - 1 - p[0], shape[1] - 1 - p[1])
+                if border_dist(path_rc[-1]) < border_dist(path_rc[0]):
+                    path_rc, width = path_rc[::-1], width[::-1]
     # base: the pipette is narrower than the tube; find the width step
     split, ratio = _split_point(width)
     if base_hint is not None:
         hint = np.array([base_hint[1], base_hint[0]], dtype=float) / f
         split = int(np.argmin(np.hypot(*(path_rc - hint).T)))
         source = "given (--base)"
-    elif ratio > 1.15 and split > 2:
+    elif ratio > 1.15 and split > min_pipette:
         source = "pipette width step"
-    elif _touches_border(path_rc[0], shape, margin):
+    elif ambiguous:
         split = 0
-        source = "image border (no pipette step seen)"
+        source = AMBIGUOUS_BASE
+    elif base_end is not None:
+        split = 0
+        source = "the static end over the video"
     else:
         split = 0
-        source = "skeleton end nearest the border"
+        source = "image border (no pipette step seen)"
     tube = path_rc[split:]
     tube_width = width[split:]
     half_width = float(np.median(tube_width)) / 2

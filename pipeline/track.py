@@ -65,6 +65,8 @@ class FrameTrack:
         Share of the normal profiles that found both edges.
     work_fraction : float
         Share of the frame's pixels the tracker looked at (its crop).
+    base_source : str
+        How the base was found, on frames that (re)started the tracker.
     """
 
     frame: int
@@ -74,6 +76,7 @@ class FrameTrack:
     residual_px: float = float("nan")
     valid_fraction: float = float("nan")
     work_fraction: float = 1.0
+    base_source: str = ""
 
     @property
     def ok(self) -> bool:
@@ -110,7 +113,7 @@ def _learn_widths(refined: Refined, n_bins: int, fallback: float) -> np.ndarray:
     return np.interp(centres, centres[good], out[good])
 
 
-def initialise(image: np.ndarray, *, base_hint=None):
+def initialise(image: np.ndarray, *, base_hint=None, base_end=None):
     """Find the tube from scratch and learn its look.
 
     Returns
@@ -119,7 +122,7 @@ def initialise(image: np.ndarray, *, base_hint=None):
         The refined first centreline, the learnt look and how the base was
         found; None when no tube stands out.
     """
-    det = detect(image, base_hint=base_hint)
+    det = detect(image, base_hint=base_hint, base_end=base_end)
     if det is None:
         return None
     hw = det.half_width
@@ -182,7 +185,7 @@ def _score(r: Refined) -> float:
     return r.valid_fraction * (1.0 if r.tip_found else 0.5) / (1.0 + r.residual_px)
 
 
-def track_frames(frames: Iterable[np.ndarray], *, base_hint=None,
+def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
                  progress: Callable[[int], None] | None = None) -> Iterator[FrameTrack]:
     """Track the tube through ``frames`` (2-D arrays, any of uint8/uint16/float).
 
@@ -192,6 +195,9 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None,
         Greyscale frames, streamed.
     base_hint : (col, row), optional
         Where the tube leaves the pipette, px (e.g. from ``--base``).
+    base_end : (col, row), optional
+        A point near the base end of the tube (which end is held), px; the
+        base itself is then found along the tube.
     progress : callable, optional
         Called with each frame index once it is done.
 
@@ -203,7 +209,7 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None,
     look: TubeLook | None = None
     history: list[Curve] = []
     for index, frame in enumerate(frames):
-        result = _track_one(index, frame, look, history, base_hint)
+        result = _track_one(index, frame, look, history, base_hint, base_end)
         if isinstance(result, tuple):  # (re)initialised: a new look, a new history
             result, look = result
             history = []
@@ -214,18 +220,18 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None,
             progress(index)
 
 
-def _track_one(index, frame, look, history, base_hint):
+def _track_one(index, frame, look, history, base_hint, base_end):
     if frame.ndim != 2:
         raise ValueError(f"frame {index} is not a greyscale 2-D array: shape {frame.shape}")
     if look is None or not history:
         image = as_float(frame)
-        init = initialise(image, base_hint=base_hint)
+        init = initialise(image, base_hint=base_hint, base_end=base_end)
         if init is None:
             return FrameTrack(index, "no tube found", None, "")
-        r, look, _ = init
+        r, look, source = init
         status = "ok" if _good(r, look) else "tube found but its edges do not fit"
         return (FrameTrack(index, status, r.curve if status == "ok" else None, "init",
-                           r.residual_px, r.valid_fraction), look)
+                           r.residual_px, r.valid_fraction, base_source=source), look)
     hw = look.mean_half_width
     pred = _predict(history)
     crossing = self_contact(pred, hw)

@@ -190,7 +190,9 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
             if progress is not None:
                 progress(i + 1, total)
 
-        results = list(track_frames(iter(reader), base_hint=base_hint, progress=tick))
+        base_end, motion_note = (None, None) if base_hint is not None else _static_end(reader)
+        results = list(track_frames(iter(reader), base_hint=base_hint, base_end=base_end,
+                                    progress=tick))
     runtime = time.perf_counter() - start
     if not results:
         raise ValueError(f"{source}: no frames to track")
@@ -204,9 +206,13 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
     lines = centrelines_table(results, scale)
     stages = Counter(r.stage for r in results if r.stage)
     notes = _notes(results, stages, base_hint is not None, rate)
+    if motion_note:
+        notes.append(motion_note)
+    base_source = "given (--base)" if base_hint else next(
+        (r.base_source for r in results if r.base_source), "not found")
     n_ok = int(sum(r.ok for r in results))
     run = TrackRun(out_dir, len(results), n_ok, scale, scale_source,
-                   "given (--base)" if base_hint else "automatic", dict(stages), runtime,
+                   base_source, dict(stages), runtime,
                    tuple(notes))
     out_dir.mkdir(parents=True, exist_ok=True)
     write_csv(tracks, out_dir / S.TRACKS_FILE)
@@ -217,6 +223,34 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
 
         write_overlay(source, results, out_dir / "overlay.png")
     return run
+
+
+def _static_end(reader):
+    """Which end is held, from the video, when the first frame cannot tell.
+
+    Returns ``(base_end, note)``: a point near the base end (col, row) or None,
+    and a line for the run's notes (None when the test was not needed).
+    """
+    from .motion import end_motion
+    from .segment import AMBIGUOUS_BASE, detect
+    from .track import as_float
+
+    first = next(iter(reader), None)
+    det = detect(as_float(first)) if first is not None else None
+    if det is None or det.base_source != AMBIGUOUS_BASE:
+        return None, None
+    ends = det.path[[0, -1]]
+    motion = end_motion(iter(reader), (-ends[0].imag, ends[0].real),
+                        (-ends[1].imag, ends[1].real), 2.0 * det.half_width)
+    if not motion.decided:
+        return None, (f"base end ambiguous (no pipette or border seen, and both ends moved "
+                      f"alike over {motion.frames} frames): took the end nearer the border; "
+                      "give --base X,Y if it is wrong")
+    end = ends[1] if motion.base_is_last else ends[0]
+    return (end.real, -end.imag), (
+        f"base end chosen by motion: no pipette or border seen, and the other end moved "
+        f"{max(motion.first, motion.last) / max(min(motion.first, motion.last), 1.0):.0f}x "
+        f"more over {motion.frames} frames")
 
 
 def _notes(results, stages, base_given: bool, rate) -> list[str]:
