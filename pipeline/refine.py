@@ -222,9 +222,13 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
         rhs = a_mat.T @ b_vec
         pen = smoothing * np.trace(lhs[:k, :k]) / np.trace(basis.roughness)
         if valid.sum() >= 8:
-            # a smoothing spline's penalty weighs against the data's variance: on
+            # a smoothing spline's penalty weighs against the data's scatter: on
             # noisy frames (blur, shot noise, low contrast) the tip tangent, the
-            # least constrained part of the curve, would otherwise follow the noise
+            # least constrained part of the curve, would otherwise follow the noise.
+            # The scatter about the current curve (not only profile-to-profile
+            # noise, measured: second differences) also counts what the fit cannot
+            # yet follow, which keeps a tip bridged over a crossing stiffer (over-
+            # curl scene: max error 3.9° against 10.8°)
             sig = 1.4826 * np.median(np.abs(delta[valid] - np.median(delta[valid])))
             pen *= max(sig / NOISE_REF_PX, 1.0) ** 2
         lhs[:k, :k] += pen * basis.roughness

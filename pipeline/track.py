@@ -42,6 +42,10 @@ from .segment import detect
 MIN_VALID = 0.7
 #: ... of the profiles not dropped because the tube crosses itself there.
 MIN_COVERAGE = 0.3
+#: Largest accepted change of the tube's length from one frame to the next.
+MAX_LENGTH_STEP = 0.08
+#: Consecutive lost frames after which the tracker starts from scratch.
+RESTART_AFTER = 5
 
 
 @dataclass(frozen=True)
@@ -113,7 +117,7 @@ def _learn_widths(refined: Refined, n_bins: int, fallback: float) -> np.ndarray:
     return np.interp(centres, centres[good], out[good])
 
 
-def initialise(image: np.ndarray, *, base_hint=None, base_end=None):
+def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=None):
     """Find the tube from scratch and learn its look.
 
     Returns
@@ -122,7 +126,7 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None):
         The refined first centreline, the learnt look and how the base was
         found; None when no tube stands out.
     """
-    det = detect(image, base_hint=base_hint, base_end=base_end)
+    det = detection or detect(image, base_hint=base_hint, base_end=base_end)
     if det is None:
         return None
     hw = det.half_width
@@ -186,7 +190,8 @@ def _score(r: Refined) -> float:
 
 
 def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
-                 progress: Callable[[int], None] | None = None) -> Iterator[FrameTrack]:
+                 first_detection=None, progress: Callable[[int], None] | None = None,
+                 ) -> Iterator[FrameTrack]:
     """Track the tube through ``frames`` (2-D arrays, any of uint8/uint16/float).
 
     Parameters
@@ -198,6 +203,8 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
     base_end : (col, row), optional
         A point near the base end of the tube (which end is held), px; the
         base itself is then found along the tube.
+    first_detection : Detection, optional
+        The first frame's detection, when the caller has already made it.
     progress : callable, optional
         Called with each frame index once it is done.
 
@@ -208,24 +215,32 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
     """
     look: TubeLook | None = None
     history: list[Curve] = []
+    lost_run = 0
     for index, frame in enumerate(frames):
-        result = _track_one(index, frame, look, history, base_hint, base_end)
+        det = first_detection if index == 0 else None
+        result = _track_one(index, frame, look, history, base_hint, base_end, det)
         if isinstance(result, tuple):  # (re)initialised: a new look, a new history
             result, look = result
             history = []
         if result.ok:
             history = (history + [result.curve])[-2:]
+            lost_run = 0
+        else:
+            lost_run += 1
+            if lost_run >= RESTART_AFTER:
+                # the last good shape may itself be wrong: start afresh
+                history = []
         yield result
         if progress is not None:
             progress(index)
 
 
-def _track_one(index, frame, look, history, base_hint, base_end):
+def _track_one(index, frame, look, history, base_hint, base_end, detection=None):
     if frame.ndim != 2:
         raise ValueError(f"frame {index} is not a greyscale 2-D array: shape {frame.shape}")
     if look is None or not history:
         image = as_float(frame)
-        init = initialise(image, base_hint=base_hint, base_end=base_end)
+        init = initialise(image, base_hint=base_hint, base_end=base_end, detection=detection)
         if init is None:
             return FrameTrack(index, "no tube found", None, "")
         r, look, source = init
@@ -234,6 +249,14 @@ def _track_one(index, frame, look, history, base_hint, base_end):
                            r.residual_px, r.valid_fraction, base_source=source), look)
     hw = look.mean_half_width
     pred = _predict(history)
+    last_length = history[-1].length
+
+    def accept(r: Refined) -> bool:
+        # a tube does not grow or shrink by a tenth between frames: an end found
+        # that far off is noise or dust beyond the tip, followed over the rounds
+        step = abs(r.curve.length - last_length)
+        return _good(r, look) and step <= MAX_LENGTH_STEP * last_length
+
     crossing = self_contact(pred, hw)
     # fast: refine the prediction inside the region it can occupy
     # the crop must hold where the tube can have moved: twice the last step's
@@ -250,27 +273,28 @@ def _track_one(index, frame, look, history, base_hint, base_end):
     r = refine(crop, pred, look, origin=(c0, r0), iterations=rounds, avoid_contact=crossing)
     stage = "crossing" if crossing else "fast"
     work = crop.size / frame.size
-    if not _good(r, look):
+    if not accept(r):
         image = as_float(frame)
         cands = [r]
         for start in (pred, history[-1]):
             cands.append(refine(image, start, look, window=1.5 * hw, iterations=10,
                                 avoid_contact=crossing or self_contact(start, hw)))
-        r = max(cands, key=_score)
+        r = max(cands, key=lambda c: _score(c) * (1.0 if accept(c) else 0.1))
         stage = "wide"
         work = 1.0
-        if not _good(r, look) and not crossing:
+        if not accept(r) and not crossing:
             prev = history[-1]
             det = detect(image, base_hint=_base_col_row(prev))
             if det is not None:
                 start = fit_to_polyline(det.path, prev.base_angle, n_coef=prev.coef.size)
                 start = replace(start, base=prev.base)
                 cand = refine(image, start, look, iterations=10)
-                if _score(cand) > _score(r):
+                if accept(cand) or (not accept(r) and _score(cand) > _score(r)):
                     r = cand
             stage = "redetect"
-    if not _good(r, look):
+    if not accept(r):
         reason = ("lost: the tube hides too much of itself" if r.coverage < MIN_COVERAGE
+                  else "lost: the tube's length jumped (end not found)" if _good(r, look)
                   else "lost: edges not found along the tube" if r.valid_fraction < MIN_VALID
                   else "lost: tip not found" if not r.tip_found
                   else "lost: edges do not fit a smooth tube")
