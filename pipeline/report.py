@@ -40,6 +40,16 @@ def _stress_scenes() -> dict:
                                            base_angle_deg=30.0,
                                            look={"name": "transmitted", "blur_px": 1.5,
                                                  "photons": 600.0, "read_noise": 0.01}),
+        # the glass pipette does not show: the base end comes from the motion
+        "stress_no_pipette": default_scene(1, n_frames=16, seed=24, mirror=True,
+                                           base_angle_deg=90.0, width=640, height=480,
+                                           look={"name": "fluorescent", "pipette_depth": 0.0}),
+        # a tube only ~9 px wide
+        "stress_small": default_scene(1, n_frames=16, seed=44, base_angle_deg=90.0,
+                                      width=320, height=240),
+        "stress_opaque_diagonal": default_scene(1, n_frames=16, seed=42, look="opaque",
+                                                base_angle_deg=-45.0, mirror=True,
+                                                width=700, height=700),
     }
 
 

@@ -86,7 +86,10 @@ def contrast_image(image: np.ndarray, factor: int):
                             interpolation=cv2.INTER_LINEAR)
     diff = small - background
     hp = diff - cv2.GaussianBlur(diff, (0, 0), 2.0)
-    noise = 1.4826 * np.median(np.abs(hp - np.median(hp))) * 1.6 + 1e-6
+    # a noise-free frame (rendered, or heavily denoised) would make every smooth
+    # residual of the background "significant": floor the noise at half a grey
+    # level of 8-bit video
+    noise = max(1.4826 * float(np.median(np.abs(hp - np.median(hp)))) * 1.6, 0.5 / 255)
     return (diff / noise).astype(np.float32), background
 
 
@@ -121,7 +124,9 @@ def foreground(contrast: np.ndarray, *, high: float = 6.0, low: float = 3.0,
     # ... but no lower than what the background model leaves over the whole frame
     # (uneven illumination it did not follow), or that residue floods the mask
     spread = 1.4826 * np.median(np.abs(smooth - np.median(smooth)))
-    noise = max(noise, spread) + 1e-6
+    # (and no lower than white noise of the contrast's unit would give after this
+    # blur: a noise-free frame has none to measure)
+    noise = max(noise, spread, 0.3)
     mag = np.abs(smooth) / noise
     mask = apply_hysteresis_threshold(mag, low, high)
     labels, n = ndi.label(mask)
