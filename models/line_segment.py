@@ -47,13 +47,15 @@ Readings of the paper's under-specified parts (documented choices):
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
+from typing import NamedTuple
 
 import numpy as np
 
 from . import _validate
-from .samples import Sample
-from .shape import Shape, arc_chain, segment_chain, segment_chain_vertices
+from .euler_bernoulli import arc_points
+from .samples import Sample, cached_on
+from .shape import Shape, segment_chain
+from .tables import Runs, progression_runs, segment_chain_vertices
 
 #: The paper's strain range (Liu et al., via §2.4).
 DEFAULT_EPS_MIN = 0.5
@@ -145,9 +147,29 @@ def segment_counts(fractions, n_segments: int) -> np.ndarray:
     return counts
 
 
-@lru_cache(maxsize=64)
-def _layout(sample: Sample, n_segments: int):
-    """Per-sample constants of the chain for N segments (cached: samples are frozen)."""
+class _Layout(NamedTuple):
+    """Per-sample constants of the chain for N segments (see :func:`_layout`)."""
+
+    counts: np.ndarray  # (n,) int, segments per section
+    seg0: np.ndarray  # (n,) initial segment length L_o per section, µm
+    lever: np.ndarray  # (n,) (t_t − t_b)(t_t/t_b) L_o / r_in, µm
+    abs_de: np.ndarray  # (n,) |d_e|, µm
+    wall_range: tuple[float, float]  # thinnest and thickest wall of the sample, µm
+    abs_de_max: float  # max |d_e|, µm
+    counts_float: np.ndarray  # counts as floats (for θ @ n)
+    runs: Runs  # table layout of the segments, for all-vertex shapes
+
+
+def _layout(sample: Sample, n_segments: int) -> _Layout:
+    """Per-sample constants of the chain for N segments (cached on the sample).
+
+    The first five fields (counts, seg0, lever, abs_de, wall_range) are those
+    of earlier versions; callers may index them by position.
+    """
+    return cached_on(sample, ("ls_layout", n_segments), lambda: _build_layout(sample, n_segments))
+
+
+def _build_layout(sample: Sample, n_segments: int) -> _Layout:
     counts = segment_counts(sample.fractions, n_segments)
     seg0 = sample.section_lengths_um / counts  # initial segment length L_o per section
     tt, tb = sample.t_top_um, sample.t_bot_um
@@ -155,10 +177,12 @@ def _layout(sample: Sample, n_segments: int):
     # the lever is everything but the slope, divided by r_in as in Eq. 12
     lever = (tt - tb) * (tt / tb) * seg0 / sample.r_in_um
     abs_de = np.abs(sample.geometry.d_e_um)
-    for arr in (counts, seg0, lever, abs_de):
+    counts_float = counts.astype(float)
+    for arr in (counts, seg0, lever, abs_de, counts_float):
         arr.flags.writeable = False
     walls = np.concatenate([tt, tb])
-    return counts, seg0, lever, abs_de, (float(walls.min()), float(walls.max()))
+    return _Layout(counts, seg0, lever, abs_de, (float(walls.min()), float(walls.max())),
+                   float(abs_de.max()), counts_float, progression_runs(counts))
 
 
 def _strain_slope(wall_range, params: LSParams) -> np.ndarray:
@@ -178,6 +202,67 @@ def _strain_slope(wall_range, params: LSParams) -> np.ndarray:
     return slope
 
 
+def _gain(layout: _Layout, params: LSParams):
+    """The d_e scaling ``1 + k|d_e|`` per section, or None when k = 0 (no scaling)."""
+    k = params.k_de_per_um
+    if k.ndim == 0 and k == 0:
+        return None
+    # the smallest factor of each k is at the largest |d_e| (k < 0) or is ≥ 1 (k ≥ 0)
+    worst = 1.0 + np.minimum(k, 0.0) * layout.abs_de_max
+    if (worst <= 0).any():
+        raise ValueError(f"1 + k_de_per_um*d_e must be > 0 in every section, got "
+                         f"{float(np.min(worst))!r} (k_de_per_um too negative)")
+    return 1.0 + k[..., None] * layout.abs_de
+
+
+def _pressure_ratio(sample: Sample, pressure_mpa, params: LSParams):
+    """p / p_max: a float for one plain number, else an array."""
+    p = _validate.nonnegative_float("pressure_mpa", pressure_mpa)
+    if p is None:
+        p = _validate.nonnegative("pressure_mpa", pressure_mpa)
+    p_max = params.p_max_mpa if params.p_max_mpa is not None else sample.p_max_mpa
+    if p_max is None:
+        raise ValueError(f"p_max_mpa is not set and sample {sample.name} has none")
+    return p / p_max
+
+
+def _tilts(sample: Sample, pressure_mpa, params: LSParams):
+    """θ (..., n), the layout, and the stretch (a float, or an array of batch shape).
+
+    The work of :func:`ls_tilts`, without broadcasting the stretch: for one
+    plain pressure and scalar parameters everything but θ stays a Python float.
+    """
+    ratio = _pressure_ratio(sample, pressure_mpa, params)
+    layout = _layout(sample, params.n_segments)
+    slope = _strain_slope(layout.wall_range, params)
+    gain = _gain(layout, params)
+    theta = np.arctan(slope[..., None] * layout.lever)
+    theta = theta * (ratio if isinstance(ratio, float) else ratio[..., None])
+    if gain is not None:
+        theta = theta * gain
+    lam = params.elongation
+    if lam.ndim == 0 and isinstance(ratio, float):
+        stretch = 1.0 + (float(lam) - 1.0) * ratio
+        bad = not stretch > 0
+    else:
+        stretch = 1.0 + (lam - 1.0) * ratio
+        bad = (stretch <= 0).any()
+    if bad:
+        raise ValueError(f"segment stretch 1 + (elongation-1)*p/p_max must be > 0, got "
+                         f"{float(np.min(stretch))!r}")
+    if not isinstance(stretch, float) and stretch.shape != theta.shape[:-1]:
+        # an elongation array may add batch axes (or lengths) that the tilt does not have
+        batch = np.broadcast_shapes(theta.shape[:-1], stretch.shape)
+        if batch != theta.shape[:-1]:
+            theta = np.broadcast_to(theta, batch + theta.shape[-1:])
+    return theta, layout, stretch
+
+
+def _per_section(stretch):
+    """``stretch`` ready to multiply a (..., n_sections) or (..., M) array."""
+    return stretch if isinstance(stretch, float) else stretch[..., None]
+
+
 def ls_tilts(sample: Sample, pressure_mpa, params: LSParams = LSParams()):
     """Tilt θ_i between neighbouring segments of each section, and their count.
 
@@ -190,30 +275,14 @@ def ls_tilts(sample: Sample, pressure_mpa, params: LSParams = LSParams()):
     stretch : (...) ndarray
         Length factor of every segment, ``1 + (λ − 1) p/p_max``.
     """
-    p = _validate.nonnegative("pressure_mpa", pressure_mpa)
-    p_max = params.p_max_mpa if params.p_max_mpa is not None else sample.p_max_mpa
-    if p_max is None:
-        raise ValueError(f"p_max_mpa is not set and sample {sample.name} has none")
-    counts, _, lever, abs_de, wall_range = _layout(sample, params.n_segments)
-    slope = _strain_slope(wall_range, params)
-    gain = 1.0 + params.k_de_per_um[..., None] * abs_de
-    if (gain <= 0).any():
-        raise ValueError(f"1 + k_de_per_um*d_e must be > 0 in every section, got "
-                         f"{float(gain.min())!r} (k_de_per_um too negative)")
-    ratio = p / p_max
-    theta = np.arctan(slope[..., None] * lever) * ratio[..., None] * gain
-    stretch = 1.0 + (params.elongation - 1.0) * ratio
-    if (stretch <= 0).any():
-        raise ValueError(f"segment stretch 1 + (elongation-1)*p/p_max must be > 0, got "
-                         f"{float(np.min(stretch))!r}")
-    return theta, counts, np.broadcast_to(stretch, theta.shape[:-1])
+    theta, layout, stretch = _tilts(sample, pressure_mpa, params)
+    return theta, layout.counts, np.broadcast_to(stretch, theta.shape[:-1])
 
 
-@lru_cache(maxsize=64)
-def _queries(sample: Sample, n_segments: int, n_points: int | None):
-    """(section, j, frac, s0) locating each output point on the chain."""
-    counts, seg0 = _layout(sample, n_segments)[:2]
-    if n_points is None:  # every vertex: the base, then the end of each segment
+def _vertex_queries(sample: Sample, n_segments: int):
+    """(section, j, s0) of every vertex: the base, then the end of each segment."""
+    def build():
+        counts, seg0 = _layout(sample, n_segments)[:2]
         k = np.arange(n_segments + 1)
         cum = np.cumsum(counts)
         section = np.searchsorted(cum, np.maximum(k, 1), side="left")
@@ -221,16 +290,32 @@ def _queries(sample: Sample, n_segments: int, n_points: int | None):
         frac = (k > 0).astype(float)
         s0 = sample.section_starts_um[section] + (j + frac) * seg0[section]
         s0[-1] = sample.length_um
-    else:
+        for arr in (section, j, s0):
+            arr.flags.writeable = False
+        return section, j, s0
+    return cached_on(sample, ("ls_vertices", n_segments), build)
+
+
+def _queries(sample: Sample, n_segments: int, n_points: int):
+    """(section, j, frac, s0) locating ``n_points`` uniformly spaced points on the chain."""
+    def build():
+        counts, seg0 = _layout(sample, n_segments)[:2]
         s0 = np.linspace(0.0, sample.length_um, n_points)
         starts = sample.section_starts_um
         section = np.clip(np.searchsorted(starts, s0, side="right") - 1, 0, counts.size - 1)
         q = (s0 - starts[section]) / seg0[section]
         j = np.clip(np.floor(q).astype(np.int64), 0, counts[section] - 1)
         frac = np.clip(q - j, 0.0, 1.0)
-    for arr in (section, j, frac, s0):
-        arr.flags.writeable = False
-    return section, j, frac, s0
+        for arr in (section, j, frac, s0):
+            arr.flags.writeable = False
+        return section, j, frac, s0
+    return cached_on(sample, ("ls_points", n_segments, n_points), build)
+
+
+def _shape(z, s, phi) -> Shape:
+    if s.shape != z.shape:
+        s = np.broadcast_to(s, z.shape)
+    return Shape(z.real, z.imag, s, phi)
 
 
 def ls_shape(sample: Sample, pressure_mpa, params: LSParams = LSParams(), *,
@@ -245,9 +330,10 @@ def ls_shape(sample: Sample, pressure_mpa, params: LSParams = LSParams(), *,
     params : LSParams
     n_points : int or None
         None returns every vertex of the chain (N + 1 points: the exact
-        polyline, cost O(N)). An integer returns that many points uniformly
-        spaced in arc length, evaluated by closed-form Dirichlet sums at a
-        cost independent of N.
+        polyline, cost O(N), segment vectors from small per-section tables of
+        complex exponentials, :func:`models.tables.cis_runs`). An integer
+        returns that many points uniformly spaced in arc length, evaluated by
+        closed-form Dirichlet sums at a cost independent of N.
 
     Returns
     -------
@@ -256,17 +342,18 @@ def ls_shape(sample: Sample, pressure_mpa, params: LSParams = LSParams(), *,
         base point carries the first segment's heading); the bend angle is the
         last segment's heading, Σ n_i θ_i.
     """
-    theta, counts, stretch = ls_tilts(sample, pressure_mpa, params)
-    if n_points is not None:
-        n_points = _validate.positive_int("n_points", n_points, minimum=2)
-    section, j, frac, s0 = _queries(sample, params.n_segments, n_points)
-    seg_len = _layout(sample, params.n_segments)[1] * stretch[..., None]
+    theta, layout, stretch = _tilts(sample, pressure_mpa, params)
+    factor = _per_section(stretch)
+    seg_len = layout.seg0 * factor
     if n_points is None:
-        z, phi = segment_chain_vertices(theta, counts, seg_len, section, j)
+        section, j, s0 = _vertex_queries(sample, params.n_segments)
+        z, phi = segment_chain_vertices(theta, layout.counts, seg_len, section, j,
+                                        runs=layout.runs)
     else:
-        z, phi = segment_chain(theta, counts, seg_len, section, j, frac)
-    s = s0 * stretch[..., None]
-    return Shape(z.real, z.imag, np.broadcast_to(s, z.shape), phi)
+        n_points = _validate.positive_int("n_points", n_points, minimum=2)
+        section, j, frac, s0 = _queries(sample, params.n_segments, n_points)
+        z, phi = segment_chain(theta, layout.counts, seg_len, section, j, frac)
+    return _shape(z, s0 * factor, phi)
 
 
 def ls_shape_cumsum(sample: Sample, pressure_mpa, params: LSParams = LSParams()) -> Shape:
@@ -290,8 +377,8 @@ def ls_shape_cumsum(sample: Sample, pressure_mpa, params: LSParams = LSParams())
 
 def ls_bend_angle(sample: Sample, pressure_mpa, params: LSParams = LSParams()) -> np.ndarray:
     """Tip angle Σ n_i θ_i, rad, without evaluating the shape."""
-    theta, counts, _ = ls_tilts(sample, pressure_mpa, params)
-    return theta @ counts.astype(float)
+    theta, layout, _ = _tilts(sample, pressure_mpa, params)
+    return theta @ layout.counts_float
 
 
 def ls_limit_shape(sample: Sample, pressure_mpa, params: LSParams = LSParams(), *,
@@ -302,18 +389,17 @@ def ls_limit_shape(sample: Sample, pressure_mpa, params: LSParams = LSParams(), 
     ``lim n_i θ_i / L_i``, independent of ``params.n_segments``; the whole
     shape is then scaled by the stretch ``1 + (λ − 1) p/p_max``.
     """
-    theta, counts, stretch = ls_tilts(sample, pressure_mpa, params)
-    _, _, lever, abs_de, wall_range = _layout(sample, params.n_segments)
+    theta, layout, stretch = _tilts(sample, pressure_mpa, params)
     n = _validate.positive_int("n_points", n_points, minimum=2)
-    slope = _strain_slope(wall_range, params)
-    ratio = np.asarray(pressure_mpa, dtype=float) / (
-        params.p_max_mpa if params.p_max_mpa is not None else sample.p_max_mpa)
-    gain = 1.0 + params.k_de_per_um[..., None] * abs_de
+    ratio = _pressure_ratio(sample, pressure_mpa, params)
+    slope = _strain_slope(layout.wall_range, params)
+    gain = _gain(layout, params)
     # n_i atan(c_i / n_i) → c_i with c_i = slope·lever_i·n_i, i.e. per unit length:
-    kappa0 = slope[..., None] * (lever * counts / sample.section_lengths_um)
-    kappa0 = kappa0 * np.asarray(ratio)[..., None] * gain
+    kappa0 = slope[..., None] * (layout.lever * layout.counts / sample.section_lengths_um)
+    kappa0 = kappa0 * (ratio if isinstance(ratio, float) else ratio[..., None])
+    if gain is not None:
+        kappa0 = kappa0 * gain
     kappa0 = np.broadcast_to(kappa0, theta.shape)
-    s0 = np.linspace(0.0, sample.length_um, n)
-    z, phi = arc_chain(kappa0, sample.section_lengths_um, s0)
-    z = z * stretch[..., None]
-    return Shape(z.real, z.imag, s0 * stretch[..., None], phi)
+    z, phi, s0 = arc_points(sample, kappa0, n)
+    factor = _per_section(stretch)
+    return _shape(z * factor, s0 * factor, phi)

@@ -157,6 +157,18 @@ class Sample:
         """Cross-section (area, d_e, I) of every section."""
         return cross_section(self.r_in_um, self.t_top_um, self.t_bot_um)
 
+    @cached_property
+    def model_cache(self) -> dict:
+        """Per-sample constants of the model evaluators, keyed by what they depend on.
+
+        The models keep their per-sample, per-resolution layouts here (segment
+        counts, query indices, table layouts) instead of in a global
+        ``lru_cache``: looking them up then needs no hash of the whole sample
+        (which hashes every section), and they live and die with the sample.
+        Internal: the values are read-only arrays owned by :mod:`models`.
+        """
+        return {}
+
     @property
     def n_sections(self) -> int:
         return len(self.sections)
@@ -169,6 +181,23 @@ class Sample:
     def with_modulus(self, E_mpa: float) -> Sample:
         """A copy with another Young's modulus."""
         return Sample(self.name, self.length_um, self.r_in_um, self.sections, E_mpa, self.p_max_mpa)
+
+
+#: Entries kept in one sample's :attr:`Sample.model_cache` (layouts and query
+#: indices for different N and point counts); beyond it the cache starts afresh.
+_CACHE_ENTRIES = 64
+
+
+def cached_on(sample: Sample, key, build):
+    """``build()``, memoised in ``sample.model_cache`` under ``key`` (internal to models)."""
+    cache = sample.model_cache
+    value = cache.get(key)
+    if value is None:
+        value = build()
+        if len(cache) >= _CACHE_ENTRIES:  # e.g. a long scan over many N: start afresh
+            cache.clear()
+        cache[key] = value
+    return value
 
 
 def _paper_sample(num, diameter, length_mm, fractions, tops, bots, p_max=None) -> Sample:

@@ -19,6 +19,10 @@ Two evaluators are shared by the models:
   evaluated at a cost independent of the number of segments. θ is first wrapped
   to (−π, π], where ``sin(θ/2)/(θ/2)`` stays ≥ 2/π, so the ratio never divides by
   a small number.
+
+When *every* point of a run of equally spaced points is wanted, the
+evaluators of :mod:`models.tables` do the same from small per-section tables
+of complex exponentials.
 """
 
 from __future__ import annotations
@@ -30,7 +34,15 @@ import numpy as np
 
 def sinc(x):
     """Unnormalised sinc, sin(x)/x, with sinc(0) = 1 exactly."""
-    return np.sinc(np.asarray(x) / np.pi)
+    x = np.asarray(x, dtype=float)
+    if x.ndim == 0:
+        return np.sinc(x / np.pi)
+    out = np.sin(x)
+    zero = x == 0
+    np.divide(out, x, out=out, where=~zero)
+    if zero.any():
+        out[zero] = 1.0
+    return out
 
 
 @dataclass(frozen=True)
@@ -108,6 +120,53 @@ class Shape:
         return np.stack([z.real, z.imag], axis=-1)
 
 
+def _exclusive_cumsum(a, axis: int = -1):
+    """Running sum along ``axis`` *before* each element (first element 0).
+
+    A direct exclusive sum, not ``cumsum(a) − a``: the latter cancels, giving
+    starts off by the rounding of a much larger running total.
+    """
+    out = np.empty(a.shape, dtype=a.dtype)
+    if axis in (-1, a.ndim - 1):
+        out[..., 0] = 0
+        np.cumsum(a[..., :-1], axis=-1, out=out[..., 1:])
+        return out
+    head = [slice(None)] * a.ndim
+    head[axis] = slice(0, 1)
+    out[tuple(head)] = 0
+    tail, body = list(head), list(head)
+    tail[axis], body[axis] = slice(1, None), slice(0, -1)
+    np.cumsum(a[tuple(body)], axis=axis, out=out[tuple(tail)])
+    return out
+
+
+def arc_starts(kappa, lengths, *, axis: int = -1):
+    """Heading and position at the start of every arc of a chain.
+
+    Parameters
+    ----------
+    kappa : (..., n) ndarray
+        Curvature of each arc, 1/µm.
+    lengths : (n,) ndarray
+        Arc lengths, µm (broadcast against ``kappa``; with ``axis=0``, shape
+        (n, 1) for a points-major (n, shapes) ``kappa``).
+    axis : int
+        The axis running along the chain.
+
+    Returns
+    -------
+    phi_start : ndarray
+        Heading at the start of each arc, rad, shaped as ``kappa``.
+    z_start : complex ndarray
+        Position at the start of each arc, µm, shaped as ``kappa``.
+    """
+    turn = kappa * lengths  # total turn of each arc
+    phi_start = _exclusive_cumsum(turn, axis=axis)
+    half = 0.5 * turn
+    chord = (lengths * sinc(half)) * np.exp(1j * (phi_start + half))
+    return phi_start, _exclusive_cumsum(chord, axis=axis)
+
+
 def arc_chain(kappa, lengths, s_query):
     """Evaluate a chain of circular arcs at arc lengths ``s_query``.
 
@@ -128,22 +187,21 @@ def arc_chain(kappa, lengths, s_query):
         Headings, rad.
     """
     kappa = np.asarray(kappa, dtype=float)
-    turn = kappa * lengths  # total turn of each arc
-    phi_start = np.cumsum(turn, axis=-1) - turn
-    chord = lengths * sinc(0.5 * turn) * np.exp(1j * (phi_start + 0.5 * turn))
-    z_start = np.cumsum(chord, axis=-1) - chord
-    starts = np.concatenate([[0.0], np.cumsum(lengths)[:-1]])
+    phi_start, z_start = arc_starts(kappa, lengths)
+    starts = _exclusive_cumsum(np.asarray(lengths, dtype=float))
     idx = np.clip(np.searchsorted(starts, s_query, side="right") - 1, 0, len(lengths) - 1)
     d = s_query - starts[idx]
-    k = kappa[..., idx]
+    k = kappa.take(idx, axis=-1)
+    phi0 = phi_start.take(idx, axis=-1)
     half = 0.5 * k * d
-    phi0 = phi_start[..., idx]
-    z = z_start[..., idx] + d * sinc(half) * np.exp(1j * (phi0 + half))
+    z = z_start.take(idx, axis=-1) + (d * sinc(half)) * np.exp(1j * (phi0 + half))
     return z, phi0 + k * d
 
 
 def _wrap(theta):
     """Wrap angles to [−π, π]."""
+    if np.abs(theta).max() < np.pi:  # round(θ/2π) = 0: nothing to wrap (the usual case)
+        return theta
     return theta - 2.0 * np.pi * np.round(theta / (2.0 * np.pi))
 
 
@@ -153,10 +211,16 @@ _TINY = 1e-150
 
 
 def _dirichlet_parts(theta_w):
-    """Per-section pieces of the ratio sin(jθ/2)/sin(θ/2): (θ/2, 1/sin(θ/2) or 0, flag)."""
+    """Per-section pieces of the ratio sin(jθ/2)/sin(θ/2): (θ/2, 1/sin(θ/2) or 0, flag).
+
+    The flag marks |sin(θ/2)| < 1e-150, where the ratio is taken as j; it is
+    None when no section is flagged (then the caller can skip that term).
+    """
     half = 0.5 * theta_w
     sin_half = np.sin(half)
     small = np.abs(sin_half) < _TINY
+    if not small.any():
+        return half, 1.0 / sin_half, None
     inv = np.where(small, 0.0, 1.0 / np.where(small, 1.0, sin_half))
     return half, inv, small
 
@@ -189,44 +253,25 @@ def segment_chain(theta, counts, seg_length, section, j, frac):
         Heading of the segment each query lies on, rad.
     """
     theta = np.asarray(theta, dtype=float)
-    turn = counts * theta
-    phi_start = np.cumsum(turn, axis=-1) - turn
+    phi_start = _exclusive_cumsum(counts * theta)
     half, inv, small = _dirichlet_parts(_wrap(theta))
     # whole section: ℓ e^{i(Φ + (n+1)θ/2)} sin(nθ/2)/sin(θ/2), θ wrapped in both factors
-    ratio_full = np.sin(counts * half) * inv + counts * small
-    chord = seg_length * ratio_full * np.exp(1j * (phi_start + (counts + 1) * half))
-    z_start = np.cumsum(chord, axis=-1) - chord
-    back = np.exp(-1j * phi_start)
-    ph0 = phi_start[..., section]
-    h = half[..., section]
-    u = np.exp(1j * (ph0 + (j + 1) * h))  # e^{i(Φ + (j+1)θ/2)}
-    ratio = np.sin(j * h) * inv[..., section] + j * small[..., section]
-    # the partial segment points along e^{i(Φ + (j+1)θ)} = u² e^{−iΦ}
-    z = z_start[..., section] + seg_length[..., section] * (
-        ratio * u + frac * (u * u * back[..., section]))
-    phi = ph0 + (j + 1) * theta[..., section]
-    return z, phi
-
-
-def segment_chain_vertices(theta, counts, seg_length, section, j):
-    """Every vertex of a segment chain: exact headings, positions by summation.
-
-    When all N + 1 vertices are wanted the output is O(N) anyway, and one
-    complex exponential plus a running sum per vertex is the cheapest exact
-    route. Headings are still the exact ``Φ_i + (j + 1)θ_i`` (never a running
-    sum of tilts), so they carry no accumulated rounding; positions carry
-    ~√N·ε relative rounding (1e-13 at N = 10⁶).
-
-    Parameters are as for :func:`segment_chain`, with ``section`` and ``j``
-    locating vertex k ≥ 1 at the end of segment k, and vertex 0 (the base) as
-    (0, 0), carrying the first segment's heading.
-    """
-    theta = np.asarray(theta, dtype=float)
-    turn = counts * theta
-    phi_start = np.cumsum(turn, axis=-1) - turn
-    phi = phi_start[..., section] + (j + 1) * theta[..., section]
-    steps = seg_length[..., section[1:]] * np.exp(1j * phi[..., 1:])
-    z = np.empty(phi.shape, dtype=complex)
-    z[..., 0] = 0.0
-    np.cumsum(steps, axis=-1, out=z[..., 1:])
+    ratio_full = np.sin(counts * half) * inv
+    if small is not None:
+        ratio_full += counts * small
+    lead = seg_length * np.exp(1j * phi_start)  # ℓ e^{iΦ}
+    z_start = _exclusive_cumsum(lead * (ratio_full * np.exp(1j * ((counts + 1) * half))))
+    # j segments and a fraction of the next: with v = e^{i(j+1)θ/2},
+    # ℓ e^{iΦ} v (sin(jθ/2)/sin(θ/2) + frac·v)   (the partial one points along e^{iΦ} v²)
+    jf = np.asarray(j, dtype=float)  # exact: j < 2⁵³
+    jp1 = jf + 1.0
+    h = half.take(section, axis=-1)
+    v = np.exp(1j * (jp1 * h))
+    ratio = np.sin(jf * h) * inv.take(section, axis=-1)
+    if small is not None:
+        ratio += jf * small.take(section, axis=-1)
+    z = v * (ratio + frac * v)
+    z *= lead.take(section, axis=-1)
+    z += z_start.take(section, axis=-1)
+    phi = phi_start.take(section, axis=-1) + jp1 * theta.take(section, axis=-1)
     return z, phi

@@ -150,6 +150,24 @@ def test_batch_over_parameter_sets_and_pressures():
                                                            k_de_per_um=k[1])).y_um, atol=1e-9)
 
 
+def test_an_elongation_array_adds_its_own_batch_axes():
+    p = np.array([0.07, 0.14])
+    params = LSParams(elongation=np.array([1.0, 1.2])[:, None])
+    for n_points in (None, 50):
+        batch = ls_shape(S1, p, params, n_points=n_points)
+        assert batch.x_um.shape == batch.phi_rad.shape == batch.s_um.shape
+        assert batch.batch_shape == (2, 2)
+        one = ls_shape(S1, p[1], LSParams(elongation=1.2), n_points=n_points)
+        np.testing.assert_allclose(batch[1, 1].x_um, one.x_um, rtol=0, atol=1e-12)
+        np.testing.assert_array_equal(batch[1, 1].phi_rad, one.phi_rad)
+    theta, _, stretch = ls_tilts(S1, p, params)
+    assert theta.shape == (2, 2, S1.n_sections) and stretch.shape == (2, 2)
+    assert ls_limit_shape(S1, p, params).batch_shape == (2, 2)
+    # same number of axes, longer along one: (2, 1) elongations × (1, 2) pressures
+    assert ls_shape(S1, p[None, :], params).batch_shape == (2, 2)
+    assert ls_tilts(S1, p[None, :], params)[0].shape == (2, 2, S1.n_sections)
+
+
 def test_zero_pressure_is_exactly_straight():
     for n_points in (None, 100):
         shape = ls_shape(S1, 0.0, LSParams(k_de_per_um=0.01, elongation=1.3), n_points=n_points)
@@ -181,11 +199,52 @@ def test_ls_rejects_bad_parameters(kwargs, match):
         ls_shape(S1, P, LSParams(**kwargs))
 
 
+def test_one_number_and_arrays_give_the_same_shape():
+    params = LSParams(n_segments=1000, k_de_per_um=0.002, elongation=1.1)
+    ref = ls_shape(S1, np.array([P]), params)
+    for p in (P, np.float64(P), np.array(P)):
+        for n_points in (None, 201):
+            one = ls_shape(S1, p, params, n_points=n_points)
+            many = ls_shape(S1, np.array([P]), params, n_points=n_points)[0]
+            np.testing.assert_array_equal(one.phi_rad, many.phi_rad)
+            np.testing.assert_allclose(one.x_um, many.x_um, rtol=0, atol=4e-16 * S1.length_um)
+            np.testing.assert_allclose(one.y_um, many.y_um, rtol=0, atol=4e-16 * S1.length_um)
+            np.testing.assert_array_equal(one.s_um, many.s_um)
+    assert ls_bend_angle(S1, P, params) == ref.bend_angle_rad[0]
+    scalar_params = LSParams(eps_max=np.array(1.0), k_de_per_um=np.float64(0.0))
+    array_params = LSParams(eps_max=np.array([1.0]), k_de_per_um=np.array([0.0]))
+    np.testing.assert_array_equal(ls_tilts(S1, P, scalar_params)[0],
+                                  ls_tilts(S1, P, array_params)[0][0])
+
+
+def test_layouts_are_cached_on_the_sample_and_bounded():
+    sample = Sample("cache", 9000.0, 235.0, (Section(0.6, 134, 67), Section(0.4, 166, 72)),
+                    p_max_mpa=0.1)
+    twin = Sample("cache", 9000.0, 235.0, (Section(0.6, 134, 67), Section(0.4, 166, 72)),
+                  p_max_mpa=0.1)
+    first = ls_shape(sample, 0.05, LSParams(n_segments=100))
+    assert sample.model_cache and not twin.model_cache
+    assert sample == twin and hash(sample) == hash(twin)  # the cache is not a field
+    again = ls_shape(sample, 0.05, LSParams(n_segments=100))
+    np.testing.assert_array_equal(first.x_um, again.x_um)
+    for n in range(2, 300):
+        ls_shape(sample, 0.05, LSParams(n_segments=n), n_points=3)
+    assert len(sample.model_cache) <= 64
+    # the render module reads the initial segment lengths by position
+    from models.line_segment import _layout
+    np.testing.assert_allclose(_layout(sample, 100)[1], sample.section_lengths_um / [60, 40])
+
+
 def test_ls_rejects_bad_pressure_and_missing_p_max():
     with pytest.raises(ValueError, match="pressure_mpa"):
         ls_shape(S1, -0.01)
     with pytest.raises(ValueError, match="pressure_mpa"):
         ls_shape(S1, [0.1, np.nan])
+    for bad in (np.float64("nan"), float("inf"), -1, 10**400, "x", None):
+        with pytest.raises(ValueError, match="pressure_mpa"):
+            ls_shape(S1, bad)
+        with pytest.raises(ValueError, match="pressure_mpa"):
+            ls_bend_angle(S1, bad)
     with pytest.raises(ValueError, match="p_max_mpa"):
         ls_shape(PAPER_SAMPLES[5], 0.1)
     with pytest.raises(ValueError, match="stretch"):
