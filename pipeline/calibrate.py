@@ -77,6 +77,11 @@ DEFAULT_BOOTSTRAP = 200
 LENGTH_TOL = 0.30
 #: λ is fitted when the length's change over the pressure range exceeds this and 3 stderr.
 ELONGATION_MIN_CHANGE = 0.005
+#: Systematic heading error of the tracker at the tip (1 sd, degrees), taken as the
+#: tracking accuracy target (median tip-angle error ≤ 0.5°, see reports/tracking).
+TRACKING_SD_DEG = 0.25
+#: Systematic relative error of the tracked length (1 sd); the tracker measures ≤ 0.25%.
+TRACKING_LENGTH_SD = 0.0025
 _RCOND = 1e-10
 
 
@@ -94,7 +99,10 @@ class ParameterEstimate:
     stderr : float or None
         Jacobian standard error scaled by the residual variance (None if fixed).
     ci95 : (float, float) or None
-        95% bootstrap interval over frames (None if fixed).
+        95% interval (None if fixed): the bootstrap interval over frames widened,
+        in quadrature, by ±1.96 ``tracking_sd``.
+    tracking_sd : float or None
+        Standard deviation from the tracker's systematic errors (None if fixed).
     fitted : bool
         True when the data determined it.
     reason : str
@@ -106,10 +114,12 @@ class ParameterEstimate:
     ci95: tuple[float, float] | None = None
     fitted: bool = False
     reason: str = ""
+    tracking_sd: float | None = None
 
     def to_dict(self) -> dict:
         return {"value": _num(self.value), "stderr": _num(self.stderr),
                 "ci95": None if self.ci95 is None else [_num(v) for v in self.ci95],
+                "tracking_sd": _num(self.tracking_sd),
                 "fitted": bool(self.fitted), "reason": self.reason}
 
 
@@ -458,8 +468,60 @@ def _soft_l1_weight(r, f_scale):
     return 1.0 / np.sqrt(1.0 + (r / f_scale) ** 2)
 
 
-def _statistics(problem: _Problem, x, f_scale, n_boot, rng):
-    """Covariance, normalised singular values/vectors, and a linearised frame bootstrap."""
+def tracking_patterns(data: FitData, fractions, *, sd_deg: float = TRACKING_SD_DEG,
+                      length_sd: float = TRACKING_LENGTH_SD) -> np.ndarray:
+    """Perturbations of the measured shapes by the tracker's systematic errors, 1 sd each.
+
+    A tracker's error repeats from frame to frame (it is in how a shape is
+    measured, not in the noise of one frame), so no resampling of frames can
+    reveal it; it is propagated through the fit instead (a Type-B uncertainty).
+    The patterns, independent of each other:
+
+    * the heading error accumulated along each section: a random walk along the
+      tube reaching ``sd_deg`` at the tip, section ``i`` carrying
+      ``sd_deg·√fraction_i``, growing across the section and carried beyond it,
+      scaled in each frame by its bend relative to the most bent frame;
+    * a base-tangent error of ``sd_deg`` (the whole shape turned about its base);
+    * a length scale error of ``length_sd`` (relative).
+
+    Parameters
+    ----------
+    data : FitData
+    fractions : sequence of float
+        The sample's section fractions, base to tip.
+    sd_deg : float
+        Heading error at the tip, degrees (1 sd).
+    length_sd : float
+        Relative length error (1 sd).
+
+    Returns
+    -------
+    (K, 2·F·M) ndarray
+        Point displacements, µm, laid out like the residual vector (x then y).
+    """
+    z = np.concatenate([data.base[:, None], data.points], axis=1)
+    rel = z[:, 1:] - data.base[:, None]
+    chord = np.diff(z, axis=1)
+    m = data.n_fractions
+    u_mid = (np.arange(m) + 0.5) / m
+    bend = np.abs(data.bend_deg)
+    scale = bend / bend.max() if bend.max() > 0 else np.zeros_like(bend)
+    sd = np.radians(sd_deg)
+    edges = np.concatenate([[0.0], np.cumsum(fractions)])
+    pats = []
+    for a, b in zip(edges[:-1], edges[1:], strict=True):
+        dphi = sd * np.sqrt(b - a) * np.clip((u_mid - a) / (b - a), 0.0, 1.0)
+        pats.append(np.cumsum(1j * chord * dphi, axis=1) * scale[:, None])
+    pats.append(1j * rel * sd)
+    pats.append(rel * length_sd)
+    d = np.asarray(pats)
+    return np.concatenate([d.real.reshape(len(pats), -1), d.imag.reshape(len(pats), -1)],
+                          axis=1)
+
+
+def _statistics(problem: _Problem, x, f_scale, n_boot, rng, patterns=None):
+    """Covariance, normalised singular values/vectors, a linearised frame bootstrap and
+    the parameter shifts from the tracker's systematic error ``patterns``."""
     r = problem.fun(x)
     jac = problem.jac(x)
     n_f, m = problem.data.n_frames, problem.data.n_fractions
@@ -492,7 +554,14 @@ def _statistics(problem: _Problem, x, f_scale, n_boot, rng):
         good = ev > (_RCOND * sv[0]) ** 2 * n_f
         steps[b] = -(evec[:, good] / ev[good]) @ (evec[:, good].T @ g_b[b])
     boot = x + steps / norms
-    return {"cov": cov, "sv": sv / sv[0], "vt": vt, "boot": boot, "residual": r,
+    # a displacement δ of the measured points shifts the solution by A⁺ Jᵀ W δ
+    # (residual = model − measured); patterns are independent, so shifts add in quadrature
+    sys_sd = np.zeros(p)
+    if patterns is not None and len(patterns):
+        shifts = (cov_n @ ((jw / norms).T @ (patterns * sw).T)).T / norms
+        sys_sd = np.sqrt(np.sum(shifts**2, axis=0))
+    return {"cov": cov, "sv": sv / sv[0], "vt": vt, "boot": boot, "sys_sd": sys_sd,
+            "residual": r,
             "dist": dist, "weight": w[: n_f * m].reshape(n_f, m)}
 
 
@@ -536,7 +605,7 @@ def calibrate(sample, tracks: pd.DataFrame, centrelines: pd.DataFrame, *, pressu
               eps_min: float = DEFAULT_EPS_MIN, eps_max_bound: float = DEFAULT_EPS_MAX,
               fit_k: bool | None = None, fit_elongation: bool | None = None,
               initial: dict | None = None, n_bootstrap: int = DEFAULT_BOOTSTRAP,
-              rng=None) -> CalibrationResult:
+              tracking_sd_deg: float = TRACKING_SD_DEG, rng=None) -> CalibrationResult:
     """Fit the line-segment (``"ls"``) or Euler–Bernoulli (``"eb"``) model to tracked shapes.
 
     Parameters
@@ -569,6 +638,10 @@ def calibrate(sample, tracks: pd.DataFrame, centrelines: pd.DataFrame, *, pressu
         ``E_eff_mpa``) instead of the angle scan (for multi-start checks).
     n_bootstrap : int
         Bootstrap replicates over frames (default 200).
+    tracking_sd_deg : float
+        The tracker's systematic heading error at the tip, degrees (1 sd,
+        default 0.5): propagated into the intervals (:func:`tracking_patterns`);
+        0 leaves only the bootstrap over frames.
     rng : numpy.random.Generator or int, optional
         For the bootstrap (default seed 0: results are reproducible).
 
@@ -593,6 +666,8 @@ def calibrate(sample, tracks: pd.DataFrame, centrelines: pd.DataFrame, *, pressu
         raise ValueError("n_segments applies to the line-segment model (ls) only")
     if not (isinstance(n_fractions, int) and n_fractions >= 2):
         raise ValueError(f"n_fractions must be a whole number >= 2, got {n_fractions!r}")
+    if not (np.isfinite(tracking_sd_deg) and tracking_sd_deg >= 0):
+        raise ValueError(f"tracking_sd_deg must be a number >= 0, got {tracking_sd_deg!r}")
     rng = np.random.default_rng(0 if rng is None else rng)
     n_seg = DEFAULT_SEGMENTS if n_segments is None else int(n_segments)
     if model == "ls" and n_seg < sample.n_sections:
@@ -609,6 +684,8 @@ def calibrate(sample, tracks: pd.DataFrame, centrelines: pd.DataFrame, *, pressu
     if abs(median_len / sample.length_um - 1.0) > LENGTH_TOL:
         raise ValueError(f"sample {sample.name} is {sample.length_um:g} um long but the tracked "
                          f"tube is {median_len:.0f} um (median): wrong sample or scale?")
+    patterns = tracking_patterns(data, [sec.fraction for sec in sample.sections],
+                                 sd_deg=tracking_sd_deg)
     tighten = f_scale_um is None
     f_scale = float(f_scale_um) if f_scale_um is not None else max(3.0 * data.spacing_um, 1.0)
     if not (np.isfinite(f_scale) and f_scale > 0):
@@ -638,11 +715,11 @@ def calibrate(sample, tracks: pd.DataFrame, centrelines: pd.DataFrame, *, pressu
                         n_segments=n_seg, p_max=p_model, mirror=mirror)
         outcome = _fit_ls(spec, sample, data, f_scale=f_scale, tighten=tighten, fit_k=fit_k,
                           fit_elongation=fit_elongation, initial=initial, p_max=p_model,
-                          n_boot=n_bootstrap, rng=rng, eps_min=eps_min)
+                          n_boot=n_bootstrap, rng=rng, eps_min=eps_min, patterns=patterns)
     else:
         spec = _eb_spec(sample, data, mirror=mirror)
         outcome = _fit_eb(spec, sample, data, f_scale=f_scale, tighten=tighten, initial=initial,
-                          n_boot=n_bootstrap, rng=rng)
+                          n_boot=n_bootstrap, rng=rng, patterns=patterns)
     theta, names_out, params, corr, stats, res, extra_notes, f_scale = outcome
     notes.extend(extra_notes)
 
@@ -667,7 +744,11 @@ def calibrate(sample, tracks: pd.DataFrame, centrelines: pd.DataFrame, *, pressu
         mirrored=mirror, success=bool(res.success), message=str(res.message),
         notes=tuple(notes),
         bootstrap={"replicates": int(n_bootstrap), "method": "frames resampled with "
-                   "replacement; one Gauss-Newton step from the solution per replicate"},
+                   "replacement; one Gauss-Newton step from the solution per replicate",
+                   "tracking_sd_deg": float(tracking_sd_deg),
+                   "tracking_method": "ci95 widened in quadrature by 1.96 x the parameter "
+                   "shift from the tracker's systematic errors (heading random walk per "
+                   "section, base tangent, length scale)"},
         _curves={"measured": data.points, "model": placed, "base": data.base,
                  "pressure": data.pressure_mpa, "frame": data.frame})
 
@@ -697,7 +778,7 @@ def _solve(spec, data, free, start, f_scale, tighten):
 
 
 def _fit_ls(spec, sample, data, *, f_scale, tighten, fit_k, fit_elongation, initial, p_max,
-            n_boot, rng, eps_min):
+            n_boot, rng, eps_min, patterns):
     notes = []
     reasons = {}
     ratio = data.pressure_mpa / p_max
@@ -732,7 +813,7 @@ def _fit_ls(spec, sample, data, *, f_scale, tighten, fit_k, fit_elongation, init
             start[spec.names.index(key)] = float(val)
     while True:
         problem, res, f_used = _solve(spec, data, free, start, f_scale, tighten)
-        stats = _statistics(problem, res.x, f_used, n_boot, rng)
+        stats = _statistics(problem, res.x, f_used, n_boot, rng, patterns)
         droppable = [i for i, j in enumerate(free) if j != 0]
         if stats["sv"][-1] < NULL_TOL and droppable:
             v = np.abs(stats["vt"][-1])
@@ -774,14 +855,14 @@ def _fit_ls(spec, sample, data, *, f_scale, tighten, fit_k, fit_elongation, init
     return theta, names, params, correlation, stats, res, notes, f_used
 
 
-def _fit_eb(spec, sample, data, *, f_scale, tighten, initial, n_boot, rng):
+def _fit_eb(spec, sample, data, *, f_scale, tighten, initial, n_boot, rng, patterns):
     start = spec.default.copy()
     grid = np.geomspace(spec.lower[0] * 10, spec.upper[0] / 10, 400)
     start[0] = _angle_scan(spec, data, 0, grid, start)
     if initial:
         start[0] = float(initial.get("E_eff_mpa", start[0]))
     problem, res, f_used = _solve(spec, data, [0], start, f_scale, tighten)
-    stats = _statistics(problem, res.x, f_used, n_boot, rng)
+    stats = _statistics(problem, res.x, f_used, n_boot, rng, patterns)
     params = {"E_eff_mpa": _estimate(res.x[0], stats, 0, spec.lower[0], spec.upper[0], 0.0)}
     correlation = {"E_eff_mpa": {"E_eff_mpa": 1.0}}
     return (problem.theta(res.x)[0], ["E_eff_mpa"], params, correlation, stats, res, [],
@@ -791,12 +872,17 @@ def _fit_eb(spec, sample, data, *, f_scale, tighten, initial, n_boot, rng):
 def _estimate(x, stats, i, lo, hi, offset) -> ParameterEstimate:
     se = float(np.sqrt(max(stats["cov"][i, i], 0.0)))
     boot = np.clip(stats["boot"][:, i], lo, hi)
-    ci = (float(np.percentile(boot, 2.5) + offset), float(np.percentile(boot, 97.5) + offset))
+    b_lo, b_hi = np.percentile(boot, [2.5, 97.5])
+    sys_sd = float(stats["sys_sd"][i])
+    # frame-to-frame scatter (bootstrap) and tracker bias (Type B) are independent
+    half_lo = np.hypot(max(x - b_lo, 0.0), 1.96 * sys_sd)
+    half_hi = np.hypot(max(b_hi - x, 0.0), 1.96 * sys_sd)
+    ci = (float(max(x - half_lo, lo) + offset), float(min(x + half_hi, hi) + offset))
     if _at_bound(x, lo, hi):
         return ParameterEstimate(float(x + offset), se, ci, fitted=False,
                                  reason=f"not determined: at its bound [{lo + offset:g}, "
-                                        f"{hi + offset:g}]")
-    return ParameterEstimate(float(x + offset), se, ci, fitted=True)
+                                        f"{hi + offset:g}]", tracking_sd=sys_sd)
+    return ParameterEstimate(float(x + offset), se, ci, fitted=True, tracking_sd=sys_sd)
 
 
 def _corr(cov):
@@ -904,5 +990,5 @@ def _num(v):
 
 
 __all__ = ["CalibrationResult", "FitData", "ParameterEstimate", "calibrate",
-           "calibrate_folder", "prepare_data", "read_tracks", "usable_frames",
+           "calibrate_folder", "prepare_data", "read_tracks", "tracking_patterns", "usable_frames",
            "write_overlay", "write_result"]

@@ -38,6 +38,16 @@ def _positive_float(text: str) -> float:
     return value
 
 
+def _non_negative_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not value >= 0 or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"must be a number >= 0, got {text!r}")
+    return value
+
+
 def _positive_int(text: str) -> int:
     try:
         value = int(text)
@@ -92,7 +102,8 @@ def cmd_calibrate(args) -> int:
         raise CliError("give either --pressure or --p-max, not both")
     result = calibrate_folder(args.sample, args.tracks, pressure_csv=args.pressure,
                               p_max=args.p_max, model=args.model, n_segments=args.segments,
-                              out_json=args.out)
+                              out_json=args.out, **({} if args.tracking_sd_deg is None else
+                                                    {"tracking_sd_deg": args.tracking_sd_deg}))
     if not args.quiet:
         print(result.summary() if hasattr(result, "summary") else f"wrote {args.out}")
     return 0
@@ -197,6 +208,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="without a log: pressure ramps linearly from 0 to this, MPa")
     p.add_argument("--model", choices=("ls", "eb"), default="ls")
     p.add_argument("--segments", type=_positive_int, help="line segments N (default 1000)")
+    p.add_argument("--tracking-sd-deg", type=_non_negative_float,
+                   help="the tracker's systematic tip-angle error (1 sd, degrees) added to "
+                        "the 95%% intervals (default 0.25; 0: bootstrap over frames and "
+                        "length error only)")
     p.add_argument("--out", required=True, help="result JSON (residuals CSV and overlay PNG "
                    "are written beside it)")
 
