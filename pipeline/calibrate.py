@@ -2,7 +2,10 @@
 
 The tracker's ``centrelines.csv`` gives, for every usable frame, the tube from
 base to tip in µm (y up); ``tracks.csv`` gives the base point and base tangent.
-Each frame's pressure comes from :mod:`pipeline.pressure`. The model shape
+Each frame's pressure comes from :mod:`pipeline.pressure` (a log or a ramp) or,
+with neither, is fitted: the line-segment model takes p only as p/p_max, and its
+tilt is (a function of Δε) × p/p_max, so every frame's ratio is a parameter of
+its own except the most bent frame's, held at 1. The model shape
 (base at the origin, base tangent along +x) is *placed* on each frame by
 rotating it by the measured base angle and moving it to the measured base
 point, and compared point by point at matched arc-length fractions
@@ -58,6 +61,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from scipy import sparse
 from scipy.optimize import least_squares
 
 from models import LSParams, eb_bend_angle, eb_shape, get_sample, ls_bend_angle, ls_shape
@@ -77,6 +81,8 @@ DEFAULT_BOOTSTRAP = 200
 LENGTH_TOL = 0.30
 #: λ is fitted when the length's change over the pressure range exceeds this and 3 stderr.
 ELONGATION_MIN_CHANGE = 0.005
+#: Upper bound of a fitted p/p_max (the most bent frame is at 1).
+RATIO_MAX = 1.5
 #: Systematic heading error of the tracker at the tip (1 sd, degrees), taken as the
 #: tracking accuracy target (median tip-angle error ≤ 0.5°, see reports/tracking).
 TRACKING_SD_DEG = 0.25
@@ -152,7 +158,8 @@ class CalibrationResult:
     residuals : DataFrame
         One row per used frame (see :func:`calibrate`).
     singular_values : tuple of float
-        Normalised singular values of the weighted Jacobian at the solution.
+        Normalised singular values of the weighted Jacobian at the solution, for
+        the shared parameters (each frame's own p/p_max, when fitted, projected out).
     notes : tuple of str
         What was decided along the way (skipped frames, mirroring, …).
     """
@@ -369,38 +376,51 @@ class _Spec:
     upper: np.ndarray
     shapes: object          # theta (K, P) -> (tube-frame points (K, F, M), tip angle (K, F))
     tips: object            # theta (K, P) -> tip angle (K, F), rad (cheap: no shape)
+    per_frame: np.ndarray | None = None  # (F,) index in theta of each frame's own parameter
 
 
-def _ls_spec(sample, data, *, eps_min, eps_max_bound, n_segments, p_max, mirror) -> _Spec:
+def _ls_spec(sample, data, *, eps_min, eps_max_bound, n_segments, p_max, mirror,
+             free_ratio=False) -> _Spec:
+    """The line-segment model; with ``free_ratio`` each frame's p/p_max is a parameter
+    (``ratio_<frame>``, after Δε, k, λ), started at ``data.pressure_mpa / p_max``."""
     m = data.n_fractions
     p = data.pressure_mpa
     abs_de = np.abs(sample.geometry.d_e_um)
     k_lo = -(1.0 - 1e-3) / abs_de.max()  # 1 + k|d_e| > 0 in every section, with a margin
     k_hi = 20.0 / abs_de.max()
 
+    def pressure(theta):
+        return theta[:, 3:] * p_max if free_ratio else p
+
+    def params(theta):
+        return LSParams(eps_min=eps_min, eps_max=eps_min + theta[:, 0:1],
+                        k_de_per_um=theta[:, 1:2], elongation=theta[:, 2:3],
+                        n_segments=n_segments, p_max_mpa=p_max)
+
     def shapes(theta):
         theta = np.atleast_2d(theta)
-        params = LSParams(eps_min=eps_min, eps_max=eps_min + theta[:, 0:1],
-                          k_de_per_um=theta[:, 1:2], elongation=theta[:, 2:3],
-                          n_segments=n_segments, p_max_mpa=p_max)
-        sh = ls_shape(sample, p, params, n_points=m + 1)
+        sh = ls_shape(sample, pressure(theta), params(theta), n_points=m + 1)
         z = sh.x_um[..., 1:] + 1j * sh.y_um[..., 1:]
         tip = sh.phi_rad[..., -1]
         return (np.conj(z), -tip) if mirror else (z, tip)
 
     def tips(theta):
         theta = np.atleast_2d(theta)
-        params = LSParams(eps_min=eps_min, eps_max=eps_min + theta[:, 0:1],
-                          k_de_per_um=theta[:, 1:2], elongation=theta[:, 2:3],
-                          n_segments=n_segments, p_max_mpa=p_max)
-        tip = ls_bend_angle(sample, p, params)
+        tip = ls_bend_angle(sample, pressure(theta), params(theta))
         return -tip if mirror else tip
 
-    return _Spec(names=("delta_eps", "k_de", "elongation"),
-                 default=np.array([DEFAULT_EPS_MAX - eps_min, 0.0, 1.0]),
-                 lower=np.array([0.0, k_lo, 0.5]),
-                 upper=np.array([eps_max_bound - eps_min, k_hi, 2.0]), shapes=shapes,
-                 tips=tips)
+    names = ("delta_eps", "k_de", "elongation")
+    default = [DEFAULT_EPS_MAX - eps_min, 0.0, 1.0]
+    lower, upper = [0.0, k_lo, 0.5], [eps_max_bound - eps_min, k_hi, 2.0]
+    per_frame = None
+    if free_ratio:
+        names += tuple(f"ratio_{f}" for f in data.frame)
+        default += list(p / p_max)
+        lower += [0.0] * data.n_frames
+        upper += [RATIO_MAX] * data.n_frames
+        per_frame = 3 + np.arange(data.n_frames)
+    return _Spec(names=names, default=np.array(default), lower=np.array(lower),
+                 upper=np.array(upper), shapes=shapes, tips=tips, per_frame=per_frame)
 
 
 def _eb_spec(sample, data, *, mirror) -> _Spec:
@@ -451,13 +471,46 @@ class _Problem:
     def fun(self, x):
         return self._residual_batch(x)[0]
 
+    def frame_columns(self) -> np.ndarray:
+        """(F,) column of each frame's own free parameter in x, −1 where none."""
+        cols = np.full(self.data.n_frames, -1)
+        if self.spec.per_frame is not None:
+            where = {j: i for i, j in enumerate(self.free)}
+            cols = np.array([where.get(j, -1) for j in self.spec.per_frame])
+        return cols
+
     def jac(self, x):
         lo, hi = self.spec.lower[self.free], self.spec.upper[self.free]
         h = 1e-7 * np.maximum(np.abs(x), np.maximum(np.abs(hi - lo) * 1e-3, 1e-12))
         h = np.where(x + h > hi, -h, h)  # stay inside the bounds (ls_tilts refuses outside)
-        xs = np.vstack([x, x + np.diag(h)])
-        r = self._residual_batch(xs)
-        return ((r[1:] - r[0]) / h[:, None]).T
+        cols = self.frame_columns()
+        own = cols[cols >= 0]
+        shared = np.setdiff1d(np.arange(x.size), own)
+        # a frame's own parameter moves only that frame: step them all in one evaluation
+        steps = [np.where(np.isin(np.arange(x.size), [c]), h, 0.0) for c in shared]
+        if own.size:
+            steps.append(np.where(np.isin(np.arange(x.size), own), h, 0.0))
+        r = self._residual_batch(np.vstack([x] + [x + d for d in steps]))
+        diff = r[1:] - r[0]
+        dense = (diff[: shared.size] / h[shared, None]).T
+        if not own.size:
+            out = np.zeros((r.shape[1], x.size))
+            out[:, shared] = dense
+            return out
+        # one column per frame with 2M non-zeros: sparse, so that the solver's
+        # trust-region steps use LSMR instead of an SVD of the whole Jacobian
+        n_f, m = self.data.n_frames, self.data.n_fractions
+        rows_d, cols_d = np.indices(dense.shape)
+        frame_of = np.flatnonzero(cols >= 0)
+        rows_o = (np.arange(2)[:, None, None] * n_f * m + frame_of[None, :, None] * m
+                  + np.arange(m)[None, None, :])                       # (2, F', M)
+        vals_o = diff[-1].reshape(2, n_f, m)[:, frame_of] / h[cols[frame_of]][None, :, None]
+        cols_o = np.broadcast_to(cols[frame_of][None, :, None], rows_o.shape)
+        return sparse.csr_matrix(
+            (np.concatenate([dense.ravel(), vals_o.ravel()]),
+             (np.concatenate([rows_d.ravel(), rows_o.ravel()]),
+              np.concatenate([shared[cols_d.ravel()], cols_o.ravel()]))),
+            shape=(r.shape[1], x.size))
 
 
 # -- fitting -------------------------------------------------------------------------------
@@ -524,6 +577,8 @@ def _statistics(problem: _Problem, x, f_scale, n_boot, rng, patterns=None):
     the parameter shifts from the tracker's systematic error ``patterns``."""
     r = problem.fun(x)
     jac = problem.jac(x)
+    if sparse.issparse(jac):
+        jac = jac.toarray()
     n_f, m = problem.data.n_frames, problem.data.n_fractions
     # the two components of a point share the point's weight (distance-based)
     dist = np.hypot(r[: n_f * m], r[n_f * m:])
@@ -544,7 +599,17 @@ def _statistics(problem: _Problem, x, f_scale, n_boot, rng, patterns=None):
     rn = rw.reshape(2, n_f, m).transpose(1, 0, 2).reshape(n_f, 2 * m)
     a_f = np.einsum("fip,fiq->fpq", jn, jn)
     g_f = np.einsum("fip,fi->fp", jn, rn)
-    counts = rng.multinomial(n_f, np.full(n_f, 1.0 / n_f), size=n_boot).astype(float)
+    cols = problem.frame_columns()
+    if problem.spec.per_frame is not None and (cols < 0).any():
+        # the frame whose own parameter is held (p/p_max = 1) fixes the scale of the
+        # others: it is in every replicate, the other frames are resampled
+        anchor = cols < 0
+        counts = np.zeros((n_boot, n_f))
+        counts[:, anchor] = 1.0
+        rest = int((~anchor).sum())
+        counts[:, ~anchor] = rng.multinomial(rest, np.full(rest, 1.0 / rest), size=n_boot)
+    else:
+        counts = rng.multinomial(n_f, np.full(n_f, 1.0 / n_f), size=n_boot).astype(float)
     a_b = np.einsum("bf,fpq->bpq", counts, a_f)
     g_b = np.einsum("bf,fp->bp", counts, g_f)
     # rank-cut pseudo-inverse per replicate, relative to the full-data scale
@@ -560,7 +625,23 @@ def _statistics(problem: _Problem, x, f_scale, n_boot, rng, patterns=None):
     if patterns is not None and len(patterns):
         shifts = (cov_n @ ((jw / norms).T @ (patterns * sw).T)).T / norms
         sys_sd = np.sqrt(np.sum(shifts**2, axis=0))
-    return {"cov": cov, "sv": sv / sv[0], "vt": vt, "boot": boot, "sys_sd": sys_sd,
+    # identifiability of the shared parameters, with each frame's own parameter (which
+    # moves that frame only) projected out of them
+    shared = np.setdiff1d(np.arange(p), cols[cols >= 0])
+    sv_s, vt_s = sv / sv[0], vt
+    if shared.size < p:
+        g = jn[:, :, shared].copy()
+        for f, c in enumerate(cols):
+            if c >= 0:
+                cf = jn[f, :, c]
+                g[f] -= np.outer(cf, cf @ g[f]) / max(cf @ cf, 1e-300)
+        g = g.reshape(-1, shared.size)
+        gn = np.linalg.norm(g, axis=0)
+        gn[gn == 0] = 1.0
+        _, sv_s, vt_s = np.linalg.svd(g / gn, full_matrices=False)
+        sv_s = sv_s / sv_s[0]
+    return {"cov": cov, "sv": sv / sv[0], "vt": vt, "sv_shared": sv_s, "vt_shared": vt_s,
+            "shared": shared, "boot": boot, "sys_sd": sys_sd,
             "residual": r,
             "dist": dist, "weight": w[: n_f * m].reshape(n_f, m)}
 
@@ -618,7 +699,9 @@ def calibrate(sample, tracks: pd.DataFrame, centrelines: pd.DataFrame, *, pressu
         Pressure log (``frame`` or ``time_s``, ``pressure_mpa``).
     p_max : float, optional
         Without a log: pressure ramps linearly from 0 to ``p_max`` MPa over
-        the frames. Exactly one of ``pressure_csv`` and ``p_max``.
+        the frames. At most one of ``pressure_csv`` and ``p_max``; with neither
+        (line-segment model only) each frame's p/p_max is fitted, the most bent
+        frame's held at 1 (``pressure_source`` says so).
     model : {"ls", "eb"}
     n_segments : int, optional
         Line segments N of the ls model (default 1000).
@@ -648,8 +731,9 @@ def calibrate(sample, tracks: pd.DataFrame, centrelines: pd.DataFrame, *, pressu
     Returns
     -------
     CalibrationResult
-        ``residuals`` has one row per used frame: frame, pressure_mpa, rms_um,
-        max_um, weight (mean soft-L1 weight), bend_measured_deg, bend_model_deg.
+        ``residuals`` has one row per used frame: frame, pressure_mpa (fitted
+        when the pressures were free), p_over_p_max, rms_um, max_um, weight
+        (mean soft-L1 weight), bend_measured_deg, bend_model_deg.
 
     Raises
     ------
@@ -677,7 +761,14 @@ def calibrate(sample, tracks: pd.DataFrame, centrelines: pd.DataFrame, *, pressu
     frames, skipped = usable_frames(tracks, centrelines)
     if frames.size < 2:
         raise ValueError(f"fewer than two usable frames ({frames.size} of {len(tracks)} ok)")
-    pressures = frame_pressures(tracks, frames, pressure_csv=pressure_csv, p_max=p_max)
+    free_ratio = pressure_csv is None and p_max is None
+    if free_ratio:
+        if model != "ls":
+            raise ValueError("no pressures: the Euler-Bernoulli model needs them (p and "
+                             "E_eff enter only as p/E); give --pressure CSV or --p-max")
+        pressures = _free_pressures(tracks, frames, sample)
+    else:
+        pressures = frame_pressures(tracks, frames, pressure_csv=pressure_csv, p_max=p_max)
     source = pressures.source
     data = prepare_data(tracks, centrelines, pressures, n_fractions=n_fractions)
     median_len = float(np.median(data.length_um))
@@ -695,6 +786,8 @@ def calibrate(sample, tracks: pd.DataFrame, centrelines: pd.DataFrame, *, pressu
     p_model = None
     if model == "ls":
         p_model = pressures.p_max_mpa or sample.p_max_mpa or float(data.pressure_mpa.max())
+        if free_ratio:
+            p_model = float(data.pressure_mpa.max())
         if not p_model > 0:
             raise ValueError("cannot set p_max: no --p-max, the sample has none and the "
                              "logged pressures are all 0")
@@ -712,7 +805,7 @@ def calibrate(sample, tracks: pd.DataFrame, centrelines: pd.DataFrame, *, pressu
 
     if model == "ls":
         spec = _ls_spec(sample, data, eps_min=eps_min, eps_max_bound=eps_max_bound,
-                        n_segments=n_seg, p_max=p_model, mirror=mirror)
+                        n_segments=n_seg, p_max=p_model, mirror=mirror, free_ratio=free_ratio)
         outcome = _fit_ls(spec, sample, data, f_scale=f_scale, tighten=tighten, fit_k=fit_k,
                           fit_elongation=fit_elongation, initial=initial, p_max=p_model,
                           n_boot=n_bootstrap, rng=rng, eps_min=eps_min, patterns=patterns)
@@ -727,8 +820,12 @@ def calibrate(sample, tracks: pd.DataFrame, centrelines: pd.DataFrame, *, pressu
     placed = data.base[:, None] + np.exp(1j * data.base_angle_rad)[:, None] * z[0]
     dist = np.abs(placed - data.points)
     bend_model = np.degrees(tip[0])
+    pressure = data.pressure_mpa
+    if spec.per_frame is not None:
+        pressure = theta[spec.per_frame] * p_model
     table = pd.DataFrame({
-        S.FRAME: data.frame, S.PRESSURE: data.pressure_mpa,
+        S.FRAME: data.frame, S.PRESSURE: pressure,
+        "p_over_p_max": pressure / p_model if p_model else np.nan,
         "rms_um": np.sqrt(np.mean(dist**2, axis=1)), "max_um": dist.max(axis=1),
         "weight": stats["weight"].mean(axis=1),
         "bend_measured_deg": data.bend_deg, "bend_model_deg": bend_model})
@@ -740,7 +837,7 @@ def calibrate(sample, tracks: pd.DataFrame, centrelines: pd.DataFrame, *, pressu
         frames_used=data.n_frames, frames_skipped=int(len(tracks) - data.n_frames),
         pressure_source=source, runtime_s=runtime,
         n_segments=n_seg if model == "ls" else None, p_max_mpa=p_model, residuals=table,
-        singular_values=tuple(float(v) for v in stats["sv"]), f_scale_um=f_scale,
+        singular_values=tuple(float(v) for v in stats["sv_shared"]), f_scale_um=f_scale,
         mirrored=mirror, success=bool(res.success), message=str(res.message),
         notes=tuple(notes),
         bootstrap={"replicates": int(n_bootstrap), "method": "frames resampled with "
@@ -750,7 +847,27 @@ def calibrate(sample, tracks: pd.DataFrame, centrelines: pd.DataFrame, *, pressu
                    "shift from the tracker's systematic errors (heading random walk per "
                    "section, base tangent, length scale)"},
         _curves={"measured": data.points, "model": placed, "base": data.base,
-                 "pressure": data.pressure_mpa, "frame": data.frame})
+                 "pressure": pressure, "frame": data.frame})
+
+
+def _free_pressures(tracks, frames, sample) -> FramePressures:
+    """Starting pressures when none are known: p/p_max = |bend| / the largest |bend|.
+
+    The line-segment model's tip angle is exactly proportional to p/p_max (with
+    λ = 1), so this is the tip-angle estimate of each frame's ratio; the fit
+    then refines every ratio but the most bent frame's (held at 1).
+    """
+    row = tracks.drop_duplicates(S.FRAME).set_index(S.FRAME).loc[frames]
+    bend = np.abs(row[S.BEND].to_numpy(float))
+    if not bend.max() > 0:
+        raise ValueError("no pressures and no frame bends: cannot estimate p/p_max")
+    p_max = sample.p_max_mpa or 1.0
+    return FramePressures(
+        frame=np.asarray(frames, dtype=np.int64), pressure_mpa=p_max * bend / bend.max(),
+        kind="free", p_max_mpa=None,
+        source="free: no pressure log or --p-max; each frame's p/p_max fitted (the most "
+               "bent frame at 1" + (f", p_max = {p_max:g} MPa from the sample)"
+                                    if sample.p_max_mpa else ")"))
 
 
 def _solve(spec, data, free, start, f_scale, tighten):
@@ -764,7 +881,8 @@ def _solve(spec, data, free, start, f_scale, tighten):
     while True:
         res = least_squares(problem.fun, x0, jac=problem.jac, bounds=(lo, hi), method="trf",
                             loss="soft_l1", f_scale=f_scale, x_scale="jac", xtol=1e-10,
-                            ftol=1e-10, gtol=1e-10, max_nfev=200)
+                            ftol=1e-10, gtol=1e-10, max_nfev=200,
+                            tr_solver="lsmr" if spec.per_frame is not None else "exact")
         if not tighten:
             return problem, res, f_scale
         # a few times the typical point distance, when that is below the pixel-based scale:
@@ -805,6 +923,14 @@ def _fit_ls(spec, sample, data, *, f_scale, tighten, fit_k, fit_elongation, init
                            "sections have the same |d_e|: k only rescales the tilt like "
                            "delta_eps; fixed at 0")
     free = [0] + ([1] if fit_k else []) + ([2] if fit_elongation else [])
+    if spec.per_frame is not None:
+        # each frame's p/p_max is free but for the most bent frame's, held at 1: the
+        # tilt is (function of Δε) × p/p_max, so one ratio must be fixed to tell Δε
+        ref = int(np.argmax(np.abs(data.bend_deg)))
+        free += [int(j) for f, j in enumerate(spec.per_frame) if f != ref]
+        notes.append(f"pressures unknown: each frame's p/p_max fitted, frame "
+                     f"{int(data.frame[ref])} (the most bent) taken at p_max; Δε is then "
+                     f"the strain range that bends the tube that far")
     # start: 1-D scan of Δε on the tip angles
     grid = np.geomspace(1e-4, spec.upper[0], 400)
     start[0] = _angle_scan(spec, data, 0, grid, start)
@@ -814,18 +940,20 @@ def _fit_ls(spec, sample, data, *, f_scale, tighten, fit_k, fit_elongation, init
     while True:
         problem, res, f_used = _solve(spec, data, free, start, f_scale, tighten)
         stats = _statistics(problem, res.x, f_used, n_boot, rng, patterns)
-        droppable = [i for i, j in enumerate(free) if j != 0]
-        if stats["sv"][-1] < NULL_TOL and droppable:
-            v = np.abs(stats["vt"][-1])
+        # positions in x of k and λ (the shared parameters come first in x)
+        droppable = [i for i, j in enumerate(free) if j in (1, 2)]
+        if stats["sv_shared"][-1] < NULL_TOL and droppable:
+            v = np.abs(stats["vt_shared"][-1])
             drop = max(droppable, key=lambda i: v[i])
             j = free[drop]
             corr = _corr(stats["cov"])
             other = [free[i] for i in range(len(free)) if i != drop]
-            rho = max((abs(corr[drop, i]) for i in range(len(free)) if i != drop), default=0)
+            rho = max((abs(corr[drop, i]) for i in range(len(free))
+                       if i != drop and free[i] < 3), default=0)
             reasons[spec.names[j]] = (
                 f"not determined: near-null direction of the Jacobian (normalised singular "
-                f"value {stats['sv'][-1]:.2g} < {NULL_TOL}; |correlation| {rho:.4f} with "
-                f"{', '.join(_out_name(spec.names[o]) for o in other)})"
+                f"value {stats['sv_shared'][-1]:.2g} < {NULL_TOL}; |correlation| {rho:.4f} "
+                f"with {', '.join(_out_name(spec.names[o]) for o in other if o < 3)})"
                 + (f"; sections differ in |d_e| by only {np.ptp(abs_de):.1f} um"
                    if j == 1 else "") + f"; fixed at {spec.default[j]:g}")
             start = spec.default.copy()
@@ -840,7 +968,7 @@ def _fit_ls(spec, sample, data, *, f_scale, tighten, fit_k, fit_elongation, init
         eps_min, fitted=False,
         reason="eps_min and eps_max enter the model only through delta_eps = eps_max - "
                f"eps_min: eps_min is held at {eps_min:g} and eps_max carries the fit")}
-    for j, name in enumerate(spec.names):
+    for j, name in enumerate(spec.names[:3]):
         offset = eps_min if j == 0 else 0.0
         if name not in fitted_vals:
             params[names[j]] = ParameterEstimate(float(theta[j] + offset), fitted=False,
@@ -849,9 +977,8 @@ def _fit_ls(spec, sample, data, *, f_scale, tighten, fit_k, fit_elongation, init
         i = fitted_vals[name]
         params[names[j]] = _estimate(res.x[i], stats, i, spec.lower[j], spec.upper[j], offset)
     corr = _corr(stats["cov"])
-    cnames = [names[j] for j in free]
-    correlation = {a: {b: float(corr[i, k]) for k, b in enumerate(cnames)}
-                   for i, a in enumerate(cnames)}
+    cnames = [(i, names[j]) for i, j in enumerate(free) if j < 3]
+    correlation = {a: {b: float(corr[i, k]) for k, b in cnames} for i, a in cnames}
     return theta, names, params, correlation, stats, res, notes, f_used
 
 
@@ -907,7 +1034,8 @@ def calibrate_folder(sample, tracks_dir, *, pressure_csv=None, p_max=None, model
         Catalogue id (1–8), ``"#1"`` or a sample TOML path.
     tracks_dir : str or Path
         Folder with ``tracks.csv`` and ``centrelines.csv``. Without
-        ``pressure_csv`` and ``p_max``, a ``pressure.csv`` in this folder is used.
+        ``pressure_csv`` and ``p_max``, a ``pressure.csv`` in this folder is used;
+        without that either, each frame's p/p_max is fitted (ls model).
     pressure_csv, p_max, model, n_segments
         As for :func:`calibrate`.
     out_json : str or Path
@@ -926,10 +1054,8 @@ def calibrate_folder(sample, tracks_dir, *, pressure_csv=None, p_max=None, model
     tracks, centrelines = read_tracks(tracks_dir)
     if pressure_csv is None and p_max is None:
         beside = Path(tracks_dir) / S.PRESSURE_FILE
-        if not beside.is_file():
-            raise ValueError(f"no pressures: give --pressure CSV or --p-max (no "
-                             f"{S.PRESSURE_FILE} in {tracks_dir})")
-        pressure_csv = beside
+        if beside.is_file():
+            pressure_csv = beside
     result = calibrate(sample, tracks, centrelines, pressure_csv=pressure_csv, p_max=p_max,
                        model=model, n_segments=n_segments, **options)
     write_result(result, out_json)

@@ -227,6 +227,24 @@ def test_tracked_frames_with_near_equal_d_e_leave_k_undetermined(tracked_scenes)
     assert eps_max.ci95[0] <= truth["eps_max"] <= eps_max.ci95[1]
 
 
+def test_without_pressures_each_frame_ratio_is_fitted(tracked_scenes):
+    truth, _, tracked = tracked_scenes["sample1"]
+    tracks, lines = read_tracks(tracked)
+    res = calibrate(1, tracks, lines, n_segments=truth.get("n_segments"))
+    assert res.pressure_source.startswith("free")
+    assert any("most bent" in note for note in res.notes)
+    assert res.delta_eps == pytest.approx(truth["eps_max"] - truth["eps_min"], rel=0.02)
+    k = res.parameters["k_de"]
+    assert k.fitted and k.value == pytest.approx(truth["k_de_per_um"], rel=0.05)
+    assert k.ci95[0] <= truth["k_de_per_um"] <= k.ci95[1]
+    log = pd.read_csv(SAMPLE_FRAMES / "sample1" / S.PRESSURE_FILE).set_index(S.FRAME)
+    true_ratio = log[S.PRESSURE] / log[S.PRESSURE].max()
+    fitted = res.residuals.set_index(S.FRAME)["p_over_p_max"]
+    assert np.abs(fitted - true_ratio.loc[fitted.index]).max() < 0.01
+    # only the shared parameters are reported as parameters
+    assert set(res.parameters) == {"eps_min", "eps_max", "k_de", "elongation"}
+
+
 def test_the_tracker_error_term_widens_the_bootstrap_interval(tracked_scenes):
     truth, res, tracked = tracked_scenes["sample1"]
     tracks, lines = read_tracks(tracked)
@@ -261,7 +279,7 @@ def test_pressure_log_by_time_and_the_cli(s1_folder, tmp_path, capsys):
     ("no_column", {"p_max": 0.14}, "lacks column"),
     ("nan_log", {}, "finite"),
     (None, {"pressure_csv": "x.csv", "p_max": 0.1}, "not both"),
-    (None, {"p_max": None}, "no pressures"),
+    (None, {"p_max": None, "model": "eb"}, "no pressures"),
 ])
 def test_bad_input_gives_one_line_errors(s1_folder, tmp_path, change, args, match):
     folder = s1_folder
