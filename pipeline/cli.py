@@ -2,15 +2,25 @@
 
 Only this module talks to the terminal: it parses options, draws progress bars
 (tqdm, on a terminal only), and turns every error about the input into one
-clear line on stderr with exit status 2. Library code never prints.
+clear line on stderr with exit status 2 (3 for an internal error, 130 when
+interrupted). Library code never prints.
+
+A failed run leaves no output behind and never replaces a good one: ``track``
+writes into a hidden folder inside ``--out`` and moves the files into place
+only once the run has succeeded.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
+import shutil
 import sys
+import tempfile
 from pathlib import Path
+
+from . import schema as S
 
 EXAMPLES = {
     "track": "microtube track video.avi --out tracked/ --um-per-px 12.5\n"
@@ -26,6 +36,24 @@ EXAMPLES = {
 
 class CliError(Exception):
     """An error to report in one line."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line (argparse prints the usage first)."""
+
+    def error(self, message):
+        if message.endswith("expected one argument"):
+            # argparse takes a value such as "-5,10" for an option
+            message += " (write a value that starts with '-' as --option=VALUE)"
+        self.exit(2, f"{self.prog}: error: {message} (see '{self.prog} --help')\n")
+
+
+def _output_folder(path, option: str = "--out") -> Path:
+    """``path`` as a Path, refusing an existing non-folder before any work is done."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise CliError(f"{option} {path}: exists and is not a folder")
+    return path
 
 
 def _positive_float(text: str) -> float:
@@ -78,28 +106,78 @@ def _progress(quiet: bool, desc: str):
 def cmd_track(args) -> int:
     from .tracks import track_video
 
-    update, close = _progress(args.quiet, "tracking")
-    try:
-        run = track_video(args.input, args.out, um_per_px=args.um_per_px, sample=args.sample,
-                          base=args.base, fps=args.fps, overlay=args.overlay, progress=update)
-    finally:
-        close()
+    out = _output_folder(args.out)
+    with _staged_outputs(out) as stage:
+        update, close = _progress(args.quiet, "tracking")
+        try:
+            run = track_video(args.input, stage, um_per_px=args.um_per_px, sample=args.sample,
+                              base=args.base, fps=args.fps, overlay=args.overlay,
+                              progress=update)
+        finally:
+            close()
+        if run.n_ok == 0:
+            # a table of NaN rows is no result: fail, keep any earlier output
+            import pandas as pd
+
+            why = pd.read_csv(stage / S.TRACKS_FILE)[S.STATUS].value_counts()
+            raise CliError(f"no frame of the {run.n_frames} could be measured ("
+                           + "; ".join(f"{k}: {v} frames" for k, v in why.items())
+                           + f"); nothing written to {out}")
     if not args.quiet:
         print(f"tracked {run.n_ok}/{run.n_frames} frames in {run.runtime_s:.2f} s "
-              f"({run.frames_per_s:.0f} frames/s) -> {run.out_dir}")
+              f"({run.frames_per_s:.0f} frames/s) -> {out}")
         for note in run.notes:
             print(f"  - {note}")
-    if run.n_ok == 0:
-        raise CliError(f"no tube found in any of the {run.n_frames} frames "
-                       f"(see the status column of {Path(run.out_dir) / 'tracks.csv'})")
     return 0
 
 
-def cmd_calibrate(args) -> int:
-    from .calibrate import calibrate_folder
+@contextlib.contextmanager
+def _staged_outputs(out: Path):
+    """A hidden folder inside ``out`` whose files replace those of ``out`` only on success.
 
+    On failure the staging folder is removed, and so are the folders made for
+    ``out`` if they are still empty: a failed run leaves nothing behind and
+    keeps an earlier run's files as they were.
+    """
+    made = []  # folders created here, deepest first
+    missing = out
+    while not missing.exists() and missing != missing.parent:
+        made.append(missing)
+        missing = missing.parent
+    out.mkdir(parents=True, exist_ok=True)
+    stage = Path(tempfile.mkdtemp(prefix=".microtube-", suffix=".part", dir=out))
+    try:
+        yield stage
+        # each move is atomic (one file system); tracks.csv last, so whoever sees
+        # the new tracks.csv also finds the new centrelines
+        for f in sorted(stage.iterdir(), key=lambda f: (f.name == S.TRACKS_FILE, f.name)):
+            os.replace(f, out / f.name)
+    except BaseException:
+        shutil.rmtree(stage, ignore_errors=True)
+        for folder in made:
+            try:
+                folder.rmdir()
+            except OSError:
+                break
+        raise
+    shutil.rmtree(stage, ignore_errors=True)
+
+
+def cmd_calibrate(args) -> int:
     if args.pressure is not None and args.p_max is not None:
         raise CliError("give either --pressure or --p-max, not both")
+    out = Path(args.out)
+    if out.is_dir():
+        raise CliError(f"--out {out}: is a folder; give the result's file name, e.g. "
+                       f"{out / 'fit.json'}")
+    tracks = Path(args.tracks)
+    inputs = [tracks / S.TRACKS_FILE, tracks / S.CENTRELINES_FILE] + (
+        [Path(args.pressure)] if args.pressure else [])
+    if any(out.resolve() == p.resolve() for p in inputs):
+        raise CliError(f"--out {out} would overwrite an input file; give another name, e.g. "
+                       f"{out.with_name('fit.json')}")
+    from .calibrate import calibrate_folder
+
     result = calibrate_folder(args.sample, args.tracks, pressure_csv=args.pressure,
                               p_max=args.p_max, model=args.model, n_segments=args.segments,
                               out_json=args.out, **({} if args.tracking_sd_deg is None else
@@ -155,6 +233,8 @@ def _size(text: str) -> tuple[int, int]:
 def cmd_demo(args) -> int:
     from .demo import run_demo
 
+    _output_folder(args.out)
+    _output_folder(args.reports, "--reports")
     run_demo(frames_dir=args.frames, out_dir=args.out, reports_dir=args.reports,
              quiet=args.quiet)
     return 0
@@ -163,6 +243,7 @@ def cmd_demo(args) -> int:
 def cmd_report(args) -> int:
     from .report import write_reports
 
+    _output_folder(args.out)
     paths = write_reports(args.out, benchmarks=args.benchmarks, quiet=args.quiet)
     if not args.quiet:
         print(f"wrote {len(paths)} files into {args.out}")
@@ -170,7 +251,7 @@ def cmd_report(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="microtube",
         description="Track, measure and model the bending of pneumatic microtube actuators.",
         epilog="Run 'microtube COMMAND --help' for a command's options and an example.")
@@ -181,7 +262,7 @@ def build_parser() -> argparse.ArgumentParser:
                            epilog="example:\n  " + EXAMPLES[name],
                            formatter_class=argparse.RawDescriptionHelpFormatter)
         p.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
-        p.set_defaults(func=func)
+        p.set_defaults(func=func, subparser=p)
         return p
 
     p = add("track", "Track the tube in a video, a folder of images or a multi-page TIFF: "
@@ -248,8 +329,18 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
+    """Run the command line on ``argv`` (default ``sys.argv[1:]``); return the exit status.
+
+    0 on success (also for ``--help``), 2 for bad options or input, 3 for an
+    internal error, 130 when interrupted; errors are one line on stderr.
+    """
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args, extra = parser.parse_known_args(argv)
+        if extra:  # name the subcommand whose options these are not
+            args.subparser.error(f"unrecognized arguments: {' '.join(extra)}")
+    except SystemExit as exc:  # --help, or an option error already printed
+        return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
     try:
         return args.func(args)
     except KeyboardInterrupt:
@@ -267,6 +358,12 @@ def main(argv=None) -> int:
 
 
 def _one_line(exc: BaseException) -> str:
+    if isinstance(exc, OSError) and exc.strerror:
+        # "[Errno 17] File exists: 'x'" -> "x: file exists"
+        text = exc.strerror[:1].lower() + exc.strerror[1:]
+        if exc.filename is not None:
+            text = f"{exc.filename}: {text}"
+        return text
     text = str(exc).strip()
     return text.splitlines()[0] if text else type(exc).__name__
 
