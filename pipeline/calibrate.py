@@ -54,6 +54,7 @@ Statistics at the solution (see :func:`_statistics`):
 
 from __future__ import annotations
 
+import contextlib
 import time
 from collections import Counter
 from dataclasses import dataclass, field
@@ -1070,9 +1071,15 @@ def write_result(result: CalibrationResult, out_json) -> dict[str, Path]:
     paths = {"json": out_json,
              "residuals": out_json.with_name(f"{out_json.stem}_residuals.csv"),
              "overlay": out_json.with_name(f"{out_json.stem}_overlay.png")}
-    write_csv(result.residuals, paths["residuals"], float_format="%.6g")
-    write_overlay(result, paths["overlay"])
-    write_json(result.to_dict(), out_json)
+    # all three are made first and moved into place together (the JSON last): a
+    # failure on the way leaves none of them behind
+    with contextlib.ExitStack() as stack:
+        tmp = {key: stack.enter_context(atomic_path(path))
+               for key, path in (("json", paths["json"]), ("overlay", paths["overlay"]),
+                                 ("residuals", paths["residuals"]))}
+        write_csv(result.residuals, tmp["residuals"], float_format="%.6g")
+        write_overlay(result, tmp["overlay"])
+        write_json(result.to_dict(), tmp["json"])
     return paths
 
 

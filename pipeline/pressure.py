@@ -84,11 +84,11 @@ def read_pressure_log(path) -> pd.DataFrame:
         raise ValueError(f"cannot read pressure log {path}: {_first_line(exc)}") from None
     if S.PRESSURE not in log.columns:
         raise ValueError(f"pressure log {path} has no '{S.PRESSURE}' column "
-                         f"(columns: {', '.join(map(str, log.columns))})")
+                         f"({_columns(log)})")
     key = S.FRAME if S.FRAME in log.columns else S.TIME if S.TIME in log.columns else None
     if key is None:
         raise ValueError(f"pressure log {path} needs a '{S.FRAME}' or '{S.TIME}' column "
-                         f"(columns: {', '.join(map(str, log.columns))})")
+                         f"({_columns(log)})")
     keep = [c for c in (S.FRAME, S.TIME) if c in log.columns] + [S.PRESSURE]
     log = log[keep].copy()
     for col in keep:
@@ -216,6 +216,14 @@ def frame_pressures(tracks: pd.DataFrame, frames, *, pressure_csv=None,
         return pressures_from_ramp(tracks, frames, p_max)
     raise ValueError("no pressures: give a pressure log (--pressure) or the ramp's end "
                      "pressure (--p-max)")
+
+
+def _columns(log: pd.DataFrame) -> str:
+    """The header of a table for a message, or a hint when it is not a CSV header."""
+    text = ", ".join(map(str, log.columns))
+    if len(text) > 120 or not text.isprintable():
+        return "is it a CSV file with a header row?"
+    return f"columns: {text}"
 
 
 def _first_line(exc: BaseException) -> str:

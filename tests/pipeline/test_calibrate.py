@@ -328,3 +328,25 @@ def test_paper_leave_one_out_table(tmp_path):
     assert np.isfinite(table["predicted_deg"]).all() and (table["predicted_deg"] > 0).all()
     paths = write_paper_leave_one_out(tmp_path)
     assert paths["csv"].exists() and "| #1 |" in paths["md"].read_text()
+
+
+def test_a_failure_while_writing_leaves_no_output_behind(s1_fit, tmp_path, monkeypatch):
+    import pipeline.calibrate as cal
+
+    res, _ = s1_fit
+
+    def broken(result, path, **_):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(cal, "write_overlay", broken)
+    with pytest.raises(OSError, match="disk full"):
+        cal.write_result(res, tmp_path / "fit.json")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_binary_pressure_log_is_named_as_such(s1_folder, tmp_path):
+    log = tmp_path / "log.csv"
+    log.write_bytes(bytes(range(256)) * 4)
+    with pytest.raises(ValueError, match="pressure log") as info:
+        calibrate_folder(1, s1_folder, pressure_csv=log, out_json=tmp_path / "x.json")
+    assert "\n" not in str(info.value) and "{" not in str(info.value)
