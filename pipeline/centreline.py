@@ -204,15 +204,15 @@ def jacobian(curve: Curve, basis: Basis, sample: CurveSample):
     return dz_da, dz_dl
 
 
-def n_coef_for(length_px: float, width_px: float) -> int:
-    """Spline size: about one coefficient per 0.75 tube widths, 8 … 48.
+def n_coef_for(length_px: float, width_px: float, *, widths_per_coef: float = 0.75) -> int:
+    """Spline size: about one coefficient per ``widths_per_coef`` tube widths, 8 … 48.
 
     A tube made of sections of different walls has curvature steps at its
     section joints; knots closer than a width apart would only fit noise, much
     wider ones blur the steps and bias the tip angle (measured: 1.5 widths per
     knot gave +2° at a 306° bend, 0.75 widths +0.3°).
     """
-    return int(np.clip(round(length_px / (0.75 * max(width_px, 1.0))), 8, 48))
+    return int(np.clip(round(length_px / (widths_per_coef * max(width_px, 1.0))), 8, 48))
 
 
 def n_grid_for(length_px: float) -> int:

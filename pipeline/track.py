@@ -5,7 +5,8 @@ Per frame, only the work the frame needs (cheapest first):
 1. **fast** — predict the centreline from the previous two frames (constant
    velocity of the spline coefficients and length), crop the frame to the
    region the predicted tube can occupy, and refine the prediction on the
-   crop's edges (:func:`pipeline.refine.refine`, 3 Gauss–Newton rounds);
+   crop's edges (:func:`pipeline.refine.refine`, 3 Gauss–Newton rounds by
+   default: :class:`TrackSettings`);
 2. **crossing** — when the predicted tube touches or crosses itself, profiles
    whose search range reaches the other layer are dropped before measuring,
    and the spline bridges the crossing from both sides; temporal continuity
@@ -46,6 +47,50 @@ MIN_COVERAGE = 0.3
 MAX_LENGTH_STEP = 0.08
 #: Consecutive lost frames after which the tracker starts from scratch.
 RESTART_AFTER = 5
+
+
+@dataclass(frozen=True)
+class TrackSettings:
+    """The tracker's knobs that trade accuracy for speed.
+
+    The defaults are the tracker's settings everywhere (``microtube track``,
+    the demo, the reports); ``reports/tracking_settings.csv`` measures what
+    the others cost and gain.
+
+    Attributes
+    ----------
+    rounds : int
+        Gauss–Newton rounds (at most) of the fast path, which refines the
+        prediction from the previous two frames on a crop; ≥ 1.
+    first_rounds : int
+        The same on the frame after a (re)start, where the prediction is only
+        the last shape (no velocity yet); ≥ 1.
+    tol_px : float
+        Every refinement stops early once no point of the centreline moves
+        more than this in a round, px; > 0.
+    widths_per_coef : float
+        Spacing of the centreline's spline coefficients, in tube widths (one
+        coefficient per this many widths, 8 … 48 coefficients; set when the
+        tracker starts): wider saves little time and blurs curvature steps at the
+        section joints; > 0.
+    """
+
+    rounds: int = 3
+    first_rounds: int = 8
+    tol_px: float = 0.02
+    widths_per_coef: float = 0.75
+
+    def __post_init__(self):
+        for name in ("rounds", "first_rounds"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+                raise ValueError(f"TrackSettings.{name} must be an integer >= 1, got {value!r}")
+        for name in ("tol_px", "widths_per_coef"):
+            value = getattr(self, name)
+            if (isinstance(value, bool) or not isinstance(value, (int, float, np.floating))
+                    or not np.isfinite(value) or value <= 0):
+                raise ValueError(f"TrackSettings.{name} must be a positive number, "
+                                 f"got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -117,8 +162,12 @@ def _learn_widths(refined: Refined, n_bins: int, fallback: float) -> np.ndarray:
     return np.interp(centres, centres[good], out[good])
 
 
-def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=None):
+def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=None,
+               settings: TrackSettings | None = None):
     """Find the tube from scratch and learn its look.
+
+    ``settings`` (default :class:`TrackSettings`) sets the spline's size and
+    the refinements' convergence tolerance.
 
     Returns
     -------
@@ -126,17 +175,20 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
         The refined first centreline, the learnt look and how the base was
         found; None when no tube stands out.
     """
+    settings = settings or TrackSettings()
+    tol = settings.tol_px
     det = detection or detect(image, base_hint=base_hint, base_end=base_end)
     if det is None:
         return None
     hw = det.half_width
     length = float(np.abs(np.diff(det.path)).sum())
-    curve = fit_to_polyline(det.path, det.base_angle, n_coef=n_coef_for(length, 2 * hw))
+    n_coef = n_coef_for(length, 2 * hw, widths_per_coef=settings.widths_per_coef)
+    curve = fit_to_polyline(det.path, det.base_angle, n_coef=n_coef)
     best = None
     for polarity in (-1, 1):
         look = TubeLook(polarity, np.full(9, hw), 0.0)
         r = refine(image, curve, look, window=0.6 * hw, iterations=3, width_tol=0.4,
-                   fit_length=False)
+                   fit_length=False, tol_px=tol)
         score = r.valid_fraction * r.strength
         if best is None or score > best[0]:
             best = (score, polarity, r)
@@ -151,12 +203,12 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
         # not where the curve ends, search wider for it
         wide_tip = None if r.tip_found else 2.0 * look.mean_half_width
         r = refine(image, r.curve, look, iterations=8, width_tol=width_tol, free_base=True,
-                   smoothing=0.1, tip_window=wide_tip)
+                   smoothing=0.1, tip_window=wide_tip, tol_px=tol)
         look = TubeLook(polarity, _learn_widths(r, 9, look.mean_half_width), r.strength)
     if base_hint is None:
         r = replace(r, curve=locate_base(image, r.curve, look))
-    r = refine(image, r.curve, look, iterations=6, free_base=True, smoothing=0.1)
-    r = refine(image, r.curve, look, iterations=4)
+    r = refine(image, r.curve, look, iterations=6, free_base=True, smoothing=0.1, tol_px=tol)
+    r = refine(image, r.curve, look, iterations=4, tol_px=tol)
     return r, look, det.base_source
 
 
@@ -191,7 +243,7 @@ def _score(r: Refined) -> float:
 
 def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
                  first_detection=None, progress: Callable[[int], None] | None = None,
-                 ) -> Iterator[FrameTrack]:
+                 settings: TrackSettings | None = None) -> Iterator[FrameTrack]:
     """Track the tube through ``frames`` (2-D arrays, any of uint8/uint16/float).
 
     Parameters
@@ -207,18 +259,21 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
         The first frame's detection, when the caller has already made it.
     progress : callable, optional
         Called with each frame index once it is done.
+    settings : TrackSettings, optional
+        The knobs that trade accuracy for speed (default: ``TrackSettings()``).
 
     Yields
     ------
     FrameTrack
         One per frame, in order.
     """
+    settings = settings or TrackSettings()
     look: TubeLook | None = None
     history: list[Curve] = []
     lost_run = 0
     for index, frame in enumerate(frames):
         det = first_detection if index == 0 else None
-        result = _track_one(index, frame, look, history, base_hint, base_end, det)
+        result = _track_one(index, frame, look, history, base_hint, base_end, det, settings)
         if isinstance(result, tuple):  # (re)initialised: a new look, a new history
             result, look = result
             history = []
@@ -235,12 +290,13 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
             progress(index)
 
 
-def _track_one(index, frame, look, history, base_hint, base_end, detection=None):
+def _track_one(index, frame, look, history, base_hint, base_end, detection, settings):
     if frame.ndim != 2:
         raise ValueError(f"frame {index} is not a greyscale 2-D array: shape {frame.shape}")
     if look is None or not history:
         image = as_float(frame)
-        init = initialise(image, base_hint=base_hint, base_end=base_end, detection=detection)
+        init = initialise(image, base_hint=base_hint, base_end=base_end, detection=detection,
+                          settings=settings)
         if init is None:
             return FrameTrack(index, "no tube found", None, "")
         r, look, source = init
@@ -269,8 +325,10 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection=None)
     crop = as_float(frame[r0:r1, c0:c1])
     # without a velocity yet (second frame after a start) the prediction is only
     # the last shape: give Gauss–Newton more rounds
-    rounds = 3 if len(history) >= 2 else 8
-    r = refine(crop, pred, look, origin=(c0, r0), iterations=rounds, avoid_contact=crossing)
+    rounds = settings.rounds if len(history) >= 2 else settings.first_rounds
+    tol = settings.tol_px
+    r = refine(crop, pred, look, origin=(c0, r0), iterations=rounds, avoid_contact=crossing,
+               tol_px=tol)
     stage = "crossing" if crossing else "fast"
     work = crop.size / frame.size
     if not accept(r):
@@ -278,7 +336,8 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection=None)
         cands = [r]
         for start in (pred, history[-1]):
             cands.append(refine(image, start, look, window=1.5 * hw, iterations=10,
-                                avoid_contact=crossing or self_contact(start, hw)))
+                                avoid_contact=crossing or self_contact(start, hw),
+                                tol_px=tol))
         r = max(cands, key=lambda c: _score(c) * (1.0 if accept(c) else 0.1))
         stage = "wide"
         work = 1.0
@@ -288,7 +347,7 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection=None)
             if det is not None:
                 start = fit_to_polyline(det.path, prev.base_angle, n_coef=prev.coef.size)
                 start = replace(start, base=prev.base)
-                cand = refine(image, start, look, iterations=10)
+                cand = refine(image, start, look, iterations=10, tol_px=tol)
                 if accept(cand) or (not accept(r) and _score(cand) > _score(r)):
                     r = cand
             stage = "redetect"

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import time
 from collections import Counter
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
@@ -20,7 +20,7 @@ import pandas as pd
 from . import schema as S
 from .atomic import write_csv, write_json
 from .centreline import Curve, resample, tip_point
-from .track import FrameTrack, track_frames
+from .track import FrameTrack, TrackSettings, track_frames
 
 
 def scale_from_length(results: list[FrameTrack], length_um: float) -> tuple[float, int]:
@@ -132,7 +132,7 @@ def _parse_base(base):
 
 def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
                 base=None, fps: float | None = None, overlay: bool = False,
-                progress=None) -> TrackRun:
+                progress=None, settings: TrackSettings | None = None) -> TrackRun:
     """Track every frame of ``source`` and write the tracker's files into ``out_dir``.
 
     Parameters
@@ -156,6 +156,9 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
         Also write ``overlay.png``: tracked centrelines on a few frames.
     progress : callable, optional
         ``progress(done, total)`` after every frame (total may be None).
+    settings : TrackSettings, optional
+        The tracker's knobs that trade accuracy for speed (default:
+        ``TrackSettings()``); recorded in ``run.json``.
 
     Raises
     ------
@@ -180,6 +183,7 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
     if fps is not None and (not np.isfinite(fps) or fps <= 0):
         raise ValueError(f"--fps must be a positive number, got {fps!r}")
     base_hint = _parse_base(base)
+    settings = settings or TrackSettings()
     out_dir = Path(out_dir)
     start = time.perf_counter()
     with open_frames(source) as reader:
@@ -196,7 +200,8 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
         base_end, motion_note, first_det = ((None, None, None) if base_hint is not None
                                             else _static_end(reader))
         results = list(track_frames(iter(reader), base_hint=base_hint, base_end=base_end,
-                                    first_detection=first_det, progress=tick))
+                                    first_detection=first_det, progress=tick,
+                                    settings=settings))
     runtime = time.perf_counter() - start
     if not results:
         raise ValueError(f"{source}: no frames to track")
@@ -221,7 +226,7 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
     out_dir.mkdir(parents=True, exist_ok=True)
     write_csv(tracks, out_dir / S.TRACKS_FILE)
     write_csv(lines, out_dir / S.CENTRELINES_FILE)
-    write_json(_run_record(run, source, rate, results), out_dir / S.RUN_FILE)
+    write_json(_run_record(run, source, rate, results, settings), out_dir / S.RUN_FILE)
     if overlay:
         from .overlay import write_overlay
 
@@ -285,7 +290,7 @@ def _notes(results, stages, base_given: bool, rate) -> list[str]:
     return notes
 
 
-def _run_record(run: TrackRun, source, rate, results) -> dict:
+def _run_record(run: TrackRun, source, rate, results, settings: TrackSettings) -> dict:
     good = [r for r in results if r.ok]
     return {
         "input": str(source),
@@ -296,6 +301,7 @@ def _run_record(run: TrackRun, source, rate, results) -> dict:
         "scale_source": run.scale_source,
         "base_source": run.base_source,
         "stages": run.stages,
+        "tracker_settings": asdict(settings),
         "runtime_s": round(run.runtime_s, 3),
         "frames_per_s": round(run.frames_per_s, 1),
         "median_residual_px": float(np.median([r.residual_px for r in good])) if good else None,

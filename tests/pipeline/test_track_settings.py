@@ -1,0 +1,61 @@
+"""The tracker's settings: validated, threaded through, and the default unchanged."""
+
+import json
+
+import numpy as np
+import pytest
+
+from pipeline.render import Renderer, default_scene, render_scene
+from pipeline.track import TrackSettings, track_frames
+from pipeline.tracks import track_video
+
+LOOK = {"name": "opaque", "photons": 0.0, "read_noise": 0.0, "flicker": 0.0, "dust": 0}
+
+
+def _scene():
+    return default_scene(3, n_frames=5, seed=3, width=320, height=240, base_angle_deg=0.0,
+                         look=LOOK)
+
+
+def _frames():
+    scene = _scene()
+    r = Renderer(scene)
+    return [r.frame(i) for i in range(scene.n_frames)]
+
+
+@pytest.mark.parametrize("field, value", [
+    ("rounds", 0), ("rounds", 2.5), ("rounds", True), ("rounds", "3"),
+    ("first_rounds", -1), ("tol_px", 0.0), ("tol_px", -0.1), ("tol_px", float("nan")),
+    ("widths_per_coef", float("inf")), ("widths_per_coef", "0.75"),
+])
+def test_bad_settings_are_refused_naming_the_field(field, value):
+    with pytest.raises(ValueError, match=rf"TrackSettings\.{field} must be"):
+        TrackSettings(**{field: value})
+
+
+def test_explicit_default_settings_track_exactly_as_no_settings():
+    frames = _frames()
+    plain = list(track_frames(frames))
+    explicit = list(track_frames(frames, settings=TrackSettings()))
+    assert [r.status for r in plain] == [r.status for r in explicit]
+    assert all(r.ok for r in plain)
+    for a, b in zip(plain, explicit, strict=True):
+        assert (a.stage, a.residual_px, a.valid_fraction) == (b.stage, b.residual_px,
+                                                              b.valid_fraction)
+        np.testing.assert_array_equal(a.curve.coef, b.curve.coef)
+        assert (a.curve.length, a.curve.base, a.curve.base_angle) == (
+            b.curve.length, b.curve.base, b.curve.base_angle)
+
+
+def test_settings_reach_the_tracker_and_run_json(tmp_path):
+    frames = _frames()
+    fine = next(track_frames(frames[:1]))
+    coarse = next(track_frames(frames[:1], settings=TrackSettings(widths_per_coef=3.0)))
+    assert coarse.curve.coef.size < fine.curve.coef.size
+    folder = render_scene(_scene(), tmp_path / "scene", fmt="png")
+    scale = json.loads((folder / "scene.json").read_text())["layout"]["um_per_px"]
+    track_video(folder / "frames", tmp_path / "out", um_per_px=scale,
+                settings=TrackSettings(rounds=1, tol_px=0.1))
+    run = json.loads((tmp_path / "out" / "run.json").read_text())
+    assert run["tracker_settings"] == {"rounds": 1, "first_rounds": 8, "tol_px": 0.1,
+                                       "widths_per_coef": 0.75}
