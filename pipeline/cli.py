@@ -123,6 +123,10 @@ def cmd_track(args) -> int:
             raise CliError(f"no frame of the {run.n_frames} could be measured ("
                            + "; ".join(f"{k}: {v} frames" for k, v in why.items())
                            + f"); nothing written to {out}")
+    stale = out / "overlay.png"
+    if not args.overlay and stale.exists():
+        # an earlier run's picture would show other centrelines than these tracks
+        stale.unlink()
     if not args.quiet:
         print(f"tracked {run.n_ok}/{run.n_frames} frames in {run.runtime_s:.2f} s "
               f"({run.frames_per_s:.0f} frames/s) -> {out}")

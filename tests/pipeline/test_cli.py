@@ -448,3 +448,12 @@ def test_calibrate_writes_the_documented_json(tracked, scene, tmp_path, capsys):
         assert np.isfinite(doc[key]) and doc[key] >= 0, key
     assert doc["rms_um"] <= doc["max_residual_um"]
     assert (tmp_path / "fit_residuals.csv").is_file() and (tmp_path / "fit_overlay.png").is_file()
+
+
+def test_a_rerun_without_overlay_removes_the_earlier_runs_picture(scene, um_per_px, tmp_path):
+    out = tmp_path / "out"
+    args = ["track", str(scene / "frames.avi"), "--out", str(out), "--um-per-px",
+            str(um_per_px), "-q"]
+    assert main(args + ["--overlay"]) == 0 and (out / "overlay.png").is_file()
+    assert main(args) == 0
+    assert not (out / "overlay.png").exists() and (out / S.TRACKS_FILE).is_file()
