@@ -488,10 +488,10 @@ class _Problem:
         own = cols[cols >= 0]
         shared = np.setdiff1d(np.arange(x.size), own)
         # a frame's own parameter moves only that frame: step them all in one evaluation
-        steps = [np.where(np.isin(np.arange(x.size), [c]), h, 0.0) for c in shared]
-        if own.size:
-            steps.append(np.where(np.isin(np.arange(x.size), own), h, 0.0))
-        r = self._residual_batch(np.vstack([x] + [x + d for d in steps]))
+        steps = np.zeros((shared.size + (own.size > 0), x.size))
+        steps[np.arange(shared.size), shared] = h[shared]
+        steps[shared.size:, own] = h[own]
+        r = self._residual_batch(np.vstack([x, x + steps]))
         diff = r[1:] - r[0]
         dense = (diff[: shared.size] / h[shared, None]).T
         if not own.size:
