@@ -263,8 +263,18 @@ def _touches_border(point_rc, shape, margin: float) -> bool:
     return r < margin or c < margin or r > shape[0] - 1 - margin or c > shape[1] - 1 - margin
 
 
-def _split_point(width: np.ndarray) -> tuple[int, float]:
-    """Best single step of a piecewise-constant fit to ``width``: (index, ratio after/before)."""
+def _split_point(width: np.ndarray, trim: int = 0) -> tuple[int, float]:
+    """Best single step of a piecewise-constant fit to ``width``: (index, ratio after/before).
+
+    ``trim`` samples at each end are left out of the search: where the skeleton
+    runs into an end (or into a spur at a compressed or blurred end), its width
+    tapers to nothing, and that short, deep drop would outweigh the pipette's
+    step.
+    """
+    trim = int(max(0, min(trim, (width.size - 6) // 2)))
+    if trim:
+        best, ratio = _split_point(width[trim:width.size - trim])
+        return (best + trim, ratio) if best else (0, 1.0)
     n = width.size
     if n < 6:
         return 0, 1.0
@@ -324,6 +334,7 @@ def detect(image: np.ndarray, *, base_hint=None, base_end=None) -> Detection | N
     # a narrow stretch shorter than a tube width is the skeleton's taper into an
     # end, not a pipette
     min_pipette = max(3.0, 2.0 * half_width)
+    trim = int(round(half_width))
     # orient base → tip
     orient = base_hint if base_hint is not None else base_end
     ambiguous = False
@@ -341,7 +352,7 @@ def detect(image: np.ndarray, *, base_hint=None, base_end=None) -> Detection | N
         elif first_b == last_b:
             # neither (or both) end at the border: a narrower pipette at one end
             # says which is held; failing that, the end nearer the border
-            split, ratio = _split_point(width)
+            split, ratio = _split_point(width, trim)
             if ratio < 1 / 1.15 and width.size - split > min_pipette:
                 path_rc, width = path_rc[::-1], width[::-1]
             elif not (ratio > 1.15 and split > min_pipette):
@@ -352,7 +363,7 @@ def detect(image: np.ndarray, *, base_hint=None, base_end=None) -> Detection | N
                 if border_dist(path_rc[-1]) < border_dist(path_rc[0]):
                     path_rc, width = path_rc[::-1], width[::-1]
     # base: the pipette is narrower than the tube; find the width step
-    split, ratio = _split_point(width)
+    split, ratio = _split_point(width, trim)
     if base_hint is not None:
         hint = np.array([base_hint[1], base_hint[0]], dtype=float) / f
         split = int(np.argmin(np.hypot(*(path_rc - hint).T)))

@@ -162,6 +162,19 @@ def test_tracking_meets_the_spec_in_every_file_format(tmp_path, fmt, bit_depth):
     _assert_same_sign(tracks, truth)
 
 
+@pytest.mark.parametrize("look", ["opaque", {"blur_px": 1.0}], ids=["opaque", "blur"])
+def test_compressed_video_still_shows_the_pipette(tmp_path, look):
+    """MJPG blocks and blur taper the skeleton into a spur at the tip; that taper
+    must not be taken for the pipette's width step (it once put the base at the
+    image border, 117 px behind the pipette, and the length 25 % too long)."""
+    errors, acc, tracks, truth = _render_and_track(tmp_path, 2, seed=2, fmt="avi", look=look,
+                                                   **SMALL)
+    run = json.loads((tmp_path / "tracked" / S.RUN_FILE).read_text(encoding="utf-8"))
+    assert run["base_source"] == "pipette width step"
+    assert acc.base_error_max_px < 1.0
+    _assert_meets_spec(errors, acc)
+
+
 # -- the committed scenes ------------------------------------------------------------------------
 @pytest.mark.parametrize("name", ["sample1", "sample2", "sample3"])
 def test_committed_scenes_meet_the_spec(tmp_path, name):
