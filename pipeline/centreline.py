@@ -63,6 +63,12 @@ class Basis:
     roughness_first : (K+1,) ndarray
         ∫ B_0'' B_j'' du for j = 0 … K (B_0 first), to extend the roughness
         penalty when the base direction is fitted too.
+    quad_u : (N,) ndarray
+        Simpson nodes (three per knot span) on which the roughness is summed.
+    quad_second : (N, K) ndarray
+        B_k''(u) at those nodes, each row scaled by the square root of its
+        Simpson weight: ``quad_second.T @ quad_second`` is ``roughness``, and
+        a subset of the rows gives the roughness of part of the curve.
     """
 
     u: np.ndarray
@@ -71,6 +77,8 @@ class Basis:
     roughness: np.ndarray
     first_mid: np.ndarray
     roughness_first: np.ndarray
+    quad_u: np.ndarray
+    quad_second: np.ndarray
 
     @property
     def n_coef(self) -> int:
@@ -95,18 +103,21 @@ def make_basis(n_coef: int, n_grid: int) -> Basis:
     full = BSpline.design_matrix(u, knots, degree).toarray()
     values = np.ascontiguousarray(full[:, 1:])
     mid = 0.5 * (values[1:] + values[:-1])
-    full_roughness = _roughness(knots, n_coef)
+    quad_u, quad_second = _second_derivatives(knots, n_coef)
+    full_roughness = quad_second.T @ quad_second
     roughness = np.ascontiguousarray(full_roughness[1:, 1:])
     roughness_first = np.ascontiguousarray(full_roughness[0])
+    quad_second = np.ascontiguousarray(quad_second[:, 1:])
     first_mid = 0.5 * (full[1:, 0] + full[:-1, 0])
-    for arr in (u, values, mid, roughness, first_mid, roughness_first):
+    for arr in (u, values, mid, roughness, first_mid, roughness_first, quad_u, quad_second):
         arr.flags.writeable = False
-    return Basis(u, values, mid, roughness, first_mid, roughness_first)
+    return Basis(u, values, mid, roughness, first_mid, roughness_first, quad_u, quad_second)
 
 
-def _roughness(knots: np.ndarray, n_coef: int) -> np.ndarray:
-    """∫ B_j'' B_k'' du for all n_coef + 1 basis functions, B_0 first (second
-    derivatives are piecewise linear, so Simpson's rule on each span is exact)."""
+def _second_derivatives(knots: np.ndarray, n_coef: int):
+    """Simpson nodes of every knot span and B_j''(u)·√weight at them, for all
+    n_coef + 1 basis functions, B_0 first (second derivatives are piecewise
+    linear, so Simpson's rule on each span is exact for ∫ B_j'' B_k'' du)."""
     spans = np.unique(knots)
     pairs = list(zip(spans[:-1], spans[1:], strict=True))
     nodes = np.concatenate([np.linspace(a, b, 3) for a, b in pairs])
@@ -117,7 +128,7 @@ def _roughness(knots: np.ndarray, n_coef: int) -> np.ndarray:
         coef = np.zeros(n_coef + 1)
         coef[j] = 1.0
         second[:, j] = BSpline(knots, coef, 3).derivative(2)(nodes)
-    return (second.T * weights) @ second
+    return nodes, second * np.sqrt(weights)[:, None]
 
 
 @dataclass(frozen=True)

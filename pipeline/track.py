@@ -188,7 +188,7 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
     for polarity in (-1, 1):
         look = TubeLook(polarity, np.full(9, hw), 0.0)
         r = refine(image, curve, look, window=0.6 * hw, iterations=3, width_tol=0.4,
-                   fit_length=False, tol_px=tol)
+                   fit_length=False, tol_px=tol, tip_stiffness=0.0)
         score = r.valid_fraction * r.strength
         if best is None or score > best[0]:
             best = (score, polarity, r)
@@ -199,11 +199,13 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
     # the base tangent is measured once, here, with a strong roughness penalty so
     # that φ(0) follows the whole tube rather than the few profiles by the base
     for width_tol in (0.3, 0.2):
-        # the skeleton's length is rough (dust, the end's extension): if the tip was
+        # (no extra stiffness at the tip yet: the skeleton's end may still hook into a
+    # spur, which a stiff tip would carry on as a curl and never find the end)
+    # the skeleton's length is rough (dust, the end's extension): if the tip was
         # not where the curve ends, search wider for it
         wide_tip = None if r.tip_found else 2.0 * look.mean_half_width
         r = refine(image, r.curve, look, iterations=8, width_tol=width_tol, free_base=True,
-                   smoothing=0.1, tip_window=wide_tip, tol_px=tol)
+                   smoothing=0.1, tip_window=wide_tip, tol_px=tol, tip_stiffness=0.0)
         look = TubeLook(polarity, _learn_widths(r, 9, look.mean_half_width), r.strength)
     if base_hint is None:
         r = replace(r, curve=locate_base(image, r.curve, look))

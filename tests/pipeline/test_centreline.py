@@ -75,3 +75,21 @@ def test_resample_spacing_and_ends():
     assert s[-1] == pytest.approx(curve.length)
     assert np.abs(np.diff(pts)).max() <= 1.0 + 1e-9
     assert pts[0] == pytest.approx(5 - 5j) and pts[-1] == pytest.approx(tip_point(curve))
+
+
+def test_partial_roughness_leaves_arcs_alone_and_sums_to_the_whole():
+    basis = make_basis(20, 301)
+    q = basis.quad_second
+    assert np.allclose(q.T @ q, basis.roughness, rtol=1e-12, atol=1e-9)
+    # φ(u) = θu (an arc): its clamped cubic coefficients are θ × the Greville
+    # abscissae; φ'' = 0 on every part of the curve, the tip's last width too
+    n = basis.n_coef + 1
+    knots = np.r_[np.zeros(4), np.linspace(0, 1, n - 2)[1:-1], np.ones(4)]
+    greville = np.array([knots[j + 1:j + 4].mean() for j in range(n)])
+    arc = 2.5 * greville[1:]
+    assert np.allclose(basis.values @ arc, 2.5 * basis.u, atol=1e-12)
+    tip = q[basis.quad_u > 0.93]
+    assert np.abs(tip @ arc).max() < 1e-9
+    # ... while a change of curvature near the tip is penalised there
+    kink = np.where(greville[1:] > 0.9, (greville[1:] - 0.9) ** 2, 0.0)
+    assert (tip @ kink) @ (tip @ kink) > 0.5 * kink @ basis.roughness @ kink

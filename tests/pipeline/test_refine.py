@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from pipeline.centreline import Curve, evaluate, fit_to_polyline, make_basis, n_grid_for
-from pipeline.refine import TubeLook, locate_base, refine, self_contact
+from pipeline.refine import TubeLook, contact_mask, locate_base, refine, self_contact
 from tests.pipeline.synthetic import arc_axis, tube_image
 
 SHAPE = (480, 640)
@@ -77,3 +77,33 @@ def test_self_contact_is_seen_only_when_the_tube_meets_itself():
     curl = _truth(1.15 * 2 * np.pi / 450.0)         # 1.15 turns: crosses its base region
     assert not self_contact(open_arc, 16.0)
     assert self_contact(curl, 16.0)
+
+
+def _polyline(points, gap=2.0):
+    """Points every ``gap`` px along a polyline (complex px)."""
+    pts = np.asarray(points, dtype=complex)
+    s = np.r_[0.0, np.cumsum(np.abs(np.diff(pts)))]
+    q = np.arange(0.0, s[-1] + 1e-9, gap)
+    return np.interp(q, s, pts.real) + 1j * np.interp(q, s, pts.imag)
+
+
+def test_a_tip_ending_against_the_body_keeps_its_side_profiles():
+    hw, gap = 10.0, 2.0
+    reach = hw * 2.2 + 0.5 * hw + 2.0  # the reach refine uses (width_tol 0.2)
+    # the body runs up x = 220, loops far away and comes back as the last part,
+    # along y = 0, which ends 20 px short of the body's axis (touching its edge)
+    z = _polyline([220 - 100j, 220 + 100j, 220 + 400j, -300 + 400j, -300 + 0j, 200 + 0j], gap)
+    last = np.nonzero((np.abs(z.imag) < 1e-9) & (z.real > 0))[0]
+    normals = np.full(last.size, 1j)
+    round_ = contact_mask(z, last, reach=reach, gap=gap)
+    along_lines = contact_mask(z, last, reach=reach, gap=gap, normals=normals, half_width=hw)
+    # a round neighbourhood drops the last width of profiles, which run beside
+    # the body, not into it; the profiles' own lines do not reach it
+    assert round_[-1] and round_.sum() >= hw / 3
+    assert not along_lines.any()
+    # a coil running beside that part, 25 px away, does lie across its profiles
+    z = _polyline([0 + 25j, 200 + 25j, 200 + 400j, -300 + 400j, -300 + 0j, 200 + 0j], gap)
+    last = np.nonzero((np.abs(z.imag) < 1e-9) & (z.real > 10))[0]
+    beside = contact_mask(z, last, reach=reach, gap=gap, normals=np.full(last.size, 1j),
+                          half_width=hw)
+    assert beside[(z[last].real > 10) & (z[last].real < 190)].all()

@@ -184,14 +184,11 @@ def test_committed_scenes_meet_the_spec(tmp_path, name):
 
 
 def test_over_curl_keeps_the_unwrapped_angle_and_every_frame(tmp_path):
-    """The tube curls to 440° and crosses its own base; no frame may be lost or wrap.
-
-    The length is not asserted here: where the tube lies over itself the tracked
-    length is off by up to ~1.15 %, above the 1 % spec (a known weak spot).
-    """
+    """The tube curls to 440° and crosses its own base; no frame may be lost or wrap,
+    and the length holds where the tip ends against the tube's own body."""
     errors, acc, tracks, truth = _track(SAMPLE_FRAMES / "overcurl", tmp_path / "tracked")
     assert truth[S.BEND].max() > 360  # the scene really goes past a full turn
-    _assert_angles_and_shape(errors, acc)
+    _assert_meets_spec(errors, acc)
     # unwrapped: past a full turn the tracked angle keeps counting instead of
     # restarting near 0° (a wrap would be a 360° error in a single frame)
     assert tracks[S.BEND].max() > 360
