@@ -350,12 +350,15 @@ def detect(image: np.ndarray, *, base_hint=None, base_end=None) -> Detection | N
         if last_b and not first_b:
             path_rc, width = path_rc[::-1], width[::-1]
         elif first_b == last_b:
-            # neither (or both) end at the border: a narrower pipette at one end
-            # says which is held; failing that, the end nearer the border
+            # both ends at the border: a narrower pipette at one end says which is
+            # held. Neither: the pipette does not show (it would come in from
+            # outside the frame), and a narrower stretch is a section of the tube
+            # (a thin-walled one is dimmer under fluorescence). Failing that, the
+            # end nearer the border, for the motion test to confirm.
             split, ratio = _split_point(width, trim)
-            if ratio < 1 / 1.15 and width.size - split > min_pipette:
+            if first_b and ratio < 1 / 1.15 and width.size - split > min_pipette:
                 path_rc, width = path_rc[::-1], width[::-1]
-            elif not (ratio > 1.15 and split > min_pipette):
+            elif not (first_b and ratio > 1.15 and split > min_pipette):
                 ambiguous = True
 
                 def border_dist(p):
@@ -368,7 +371,7 @@ def detect(image: np.ndarray, *, base_hint=None, base_end=None) -> Detection | N
         hint = np.array([base_hint[1], base_hint[0]], dtype=float) / f
         split = int(np.argmin(np.hypot(*(path_rc - hint).T)))
         source = "given (--base)"
-    elif ratio > 1.15 and split > min_pipette:
+    elif ratio > 1.15 and split > min_pipette and _touches_border(path_rc[0], shape, margin):
         source = "pipette width step"
     elif ambiguous:
         split = 0
@@ -398,3 +401,4 @@ def detect(image: np.ndarray, *, base_hint=None, base_end=None) -> Detection | N
     if abs(tip_dir) > 0:
         pts = np.append(pts, pts[-1] + 0.9 * half_width_px * tip_dir / abs(tip_dir))
     return Detection(pts, complex(pts[0]), base_angle, half_width_px, source)
+

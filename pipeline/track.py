@@ -273,15 +273,19 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
     look: TubeLook | None = None
     history: list[Curve] = []
     lost_run = 0
+    held_base = base_hint
     for index, frame in enumerate(frames):
         det = first_detection if index == 0 else None
-        result = _track_one(index, frame, look, history, base_hint, base_end, det, settings)
+        result = _track_one(index, frame, look, history, held_base, base_end, det, settings)
         if isinstance(result, tuple):  # (re)initialised: a new look, a new history
             result, look = result
             history = []
         if result.ok:
             history = (history + [result.curve])[-2:]
             lost_run = 0
+            # the pipette holds the base still: a restart finds the tube from the
+            # same base, so the ends cannot swap (which would flip the angle's sign)
+            held_base = base_hint if base_hint is not None else _base_col_row(result.curve)
         else:
             lost_run += 1
             if lost_run >= RESTART_AFTER:

@@ -251,7 +251,7 @@ def _static_end(reader):
         return None, None, det
     ends = det.path[[0, -1]]
     motion = end_motion(iter(reader), (-ends[0].imag, ends[0].real),
-                        (-ends[1].imag, ends[1].real), 2.0 * det.half_width)
+                        (-ends[1].imag, ends[1].real), det.half_width)
     if not motion.decided:
         return None, (f"base end ambiguous (no pipette or border seen, and both ends moved "
                       f"alike over {motion.frames} frames): took the end nearer the border; "

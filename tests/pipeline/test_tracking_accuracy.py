@@ -175,6 +175,21 @@ def test_compressed_video_still_shows_the_pipette(tmp_path, look):
     _assert_meets_spec(errors, acc)
 
 
+def test_a_dim_section_is_not_taken_for_the_pipette(tmp_path):
+    """Under fluorescence a thin-walled section is dimmer, so its mask is narrower;
+    with the pipette unseen (it would come in from the border) that narrower
+    stretch once became the "pipette" and only the last section was tracked
+    (length 66 % short). The base end now comes from the motion."""
+    errors, acc, tracks, truth = _render_and_track(tmp_path, 2, seed=1, look="fluorescent",
+                                                   width=320, height=240, n_frames=8)
+    run = json.loads((tmp_path / "tracked" / S.RUN_FILE).read_text(encoding="utf-8"))
+    assert run["base_source"] != "pipette width step"
+    assert acc.frames_lost == 0
+    assert acc.length_error_max_pct <= LENGTH_ERROR_PCT
+    assert acc.base_error_max_px < 2.0
+    _assert_same_sign(tracks, truth)
+
+
 # -- the committed scenes ------------------------------------------------------------------------
 @pytest.mark.parametrize("name", ["sample1", "sample2", "sample3"])
 def test_committed_scenes_meet_the_spec(tmp_path, name):
