@@ -113,7 +113,8 @@ def end_motion(frames: Iterable[np.ndarray], first_rc, last_rc, radius_px: float
     first_rc, last_rc : (row, col)
         The two ends of the tube in the first frame, full-frame px.
     radius_px : float
-        Radius of the neighbourhood looked at, full-frame px (about a tube width).
+        Radius of the neighbourhood looked at, full-frame px (the tracker uses
+        the tube's half-width: wider takes in the base section's own bending).
     """
     std, factor, n = motion_map(frames, **kwargs)
     rows, cols = np.indices(std.shape)

@@ -24,11 +24,12 @@ NOISE_REF_PX = 0.05
 #: Extra weight of the roughness penalty over the last :data:`TIP_STIFF_WIDTHS`
 #: tube widths: the curvature there is held all but constant, so the tip
 #: tangent is the continuation of the arc before it rather than the slope of
-#: the last, least constrained spline span. Measured on 12 evaluation scenes
-#: (reports/tracking_accuracy.csv): tip-angle error medians fall on 9, e.g.
-#: 1.29° → 0.41° on a 9 px wide tube and 0.27° → 0.06° on sample 1; the
-#: brighter-walled fluorescent tube worsens (0.86° → 1.55°), whose measured
-#: centre runs off towards the thin wall. A stretch of 2 widths was worse on 8.
+#: the last, least constrained spline span. Measured on 12 rendered scenes
+#: (other seeds, sizes, looks and formats than the tests'): tip-angle error
+#: medians fall on 9, e.g. 1.29° → 0.41° on a 9 px wide tube and 0.27° → 0.06°
+#: on sample 1; a fluorescent tube worsens (0.86° → 1.55°), where the measured
+#: centre already sits 0.2–0.5 px off the true one and the stiff tip carries
+#: that on. A stretch of 2 widths was worse on 8 of the 12.
 TIP_STIFFNESS = 10.0
 TIP_STIFF_WIDTHS = 1.0
 

@@ -284,8 +284,8 @@ def _readme(out: Path, track, speed, calib, vs_n, demo, model_md: str,
         "named stress_* are rendered on the fly in looks the committed scenes do not use.", "",
         "![tracking error against bend](tracking_errors.png)", "",
         "The error grows with the bend mainly in the fluorescent looks (the measured tip "
-        "turns ~1 % further than the true one: the bright walls' edges shift the measured "
-        "centre by 0.2–0.5 px towards one side, by section) and where the tube lies over "
+        "turns ~1 % further than the true one, and the measured centre sits 0.2–0.5 px "
+        "to one side of the true one: cause not yet found) and where the tube lies over "
         "itself (over-curl); see the per-frame table.", "",
         "### Speed", "",
         f"The whole `track` command on {int(s.frames)} frames of 1024×768 8-bit MJPG video: "

@@ -401,4 +401,3 @@ def detect(image: np.ndarray, *, base_hint=None, base_end=None) -> Detection | N
     if abs(tip_dir) > 0:
         pts = np.append(pts, pts[-1] + 0.9 * half_width_px * tip_dir / abs(tip_dir))
     return Detection(pts, complex(pts[0]), base_angle, half_width_px, source)
-

@@ -199,10 +199,10 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
     # the base tangent is measured once, here, with a strong roughness penalty so
     # that φ(0) follows the whole tube rather than the few profiles by the base
     for width_tol in (0.3, 0.2):
-        # (no extra stiffness at the tip yet: the skeleton's end may still hook into a
-    # spur, which a stiff tip would carry on as a curl and never find the end)
-    # the skeleton's length is rough (dust, the end's extension): if the tip was
-        # not where the curve ends, search wider for it
+        # the skeleton's length is rough (dust, the end's extension): if the tip was
+        # not where the curve ends, search wider for it. No extra stiffness at the
+        # tip yet: the skeleton's end may still hook into a spur, which a stiff tip
+        # would carry on as a curl and so never find the end
         wide_tip = None if r.tip_found else 2.0 * look.mean_half_width
         r = refine(image, r.curve, look, iterations=8, width_tol=width_tol, free_base=True,
                    smoothing=0.1, tip_window=wide_tip, tol_px=tol, tip_stiffness=0.0)
