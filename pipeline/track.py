@@ -76,7 +76,7 @@ class TrackSettings:
     """
 
     rounds: int = 3
-    first_rounds: int = 8
+    first_rounds: int = 20
     tol_px: float = 0.02
     widths_per_coef: float = 0.75
 
@@ -322,12 +322,14 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
     crossing = self_contact(pred, hw)
     # fast: refine the prediction inside the region it can occupy
     # the crop must hold where the tube can have moved: twice the last step's
-    # tip motion (or a fifth of the length before a velocity is known)
+    # tip motion; a fit that reaches the crop's edge anyway is redone on the frame
     if len(history) >= 2:
         motion = 2 * abs(tip_point(history[-1]) - tip_point(history[-2]))
+        r0, r1, c0, c1 = _crop_box(pred, 3 * hw + 8 + motion, frame.shape)
     else:
-        motion = 0.2 * pred.length
-    r0, r1, c0, c1 = _crop_box(pred, 3 * hw + 8 + motion, frame.shape)
+        # no velocity yet (the frame after a start): the tube may have moved
+        # anywhere its length allows, so the whole frame, once per start
+        r0, r1, c0, c1 = 0, frame.shape[0], 0, frame.shape[1]
     crop = as_float(frame[r0:r1, c0:c1])
     # without a velocity yet (second frame after a start) the prediction is only
     # the last shape: give Gauss–Newton more rounds
@@ -337,9 +339,10 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
                tol_px=tol)
     stage = "crossing" if crossing else "fast"
     work = crop.size / frame.size
-    if not accept(r):
+    cut = _reaches_crop_edge(r.curve, hw, (r0, r1, c0, c1), frame.shape)
+    if cut or not accept(r):
         image = as_float(frame)
-        cands = [r]
+        cands = [] if cut else [r]
         for start in (pred, history[-1]):
             cands.append(refine(image, start, look, window=1.5 * hw, iterations=10,
                                 avoid_contact=crossing or self_contact(start, hw),
@@ -348,15 +351,19 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
         stage = "wide"
         work = 1.0
         if not accept(r) and not crossing:
-            prev = history[-1]
-            det = detect(image, base_hint=_base_col_row(prev))
-            if det is not None:
-                start = fit_to_polyline(det.path, prev.base_angle, n_coef=prev.coef.size)
-                start = replace(start, base=prev.base)
-                cand = refine(image, start, look, iterations=10, tol_px=tol)
-                if accept(cand) or (not accept(r) and _score(cand) > _score(r)):
-                    r = cand
+            cand = _redetect(image, history[-1], look, tol)
+            if cand is not None and (accept(cand) or (not accept(r)
+                                                      and _score(cand) > _score(r))):
+                r = cand
             stage = "redetect"
+    elif len(history) < 2 and not crossing:
+        # the frame after a start: without a velocity the last shape may be too
+        # far from this one for Gauss–Newton (a fast bend: 100° per frame ended
+        # 60° short and looked fine), so the tube is also found afresh and the
+        # better fit kept; once per start
+        cand = _redetect(as_float(frame), history[-1], look, tol)
+        if cand is not None and accept(cand) and _score(cand) > _score(r):
+            r, stage, work = cand, "redetect", 1.0
     if not accept(r):
         reason = ("lost: the tube hides too much of itself" if r.coverage < MIN_COVERAGE
                   else "lost: the tube's length jumped (end not found)" if _good(r, look)
@@ -370,6 +377,34 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
         return FrameTrack(index, "lost: bend angle jumped by about a turn", None, stage,
                           r.residual_px, r.valid_fraction, work)
     return FrameTrack(index, "ok", r.curve, stage, r.residual_px, r.valid_fraction, work)
+
+
+def _redetect(image, prev: Curve, look: TubeLook, tol: float) -> Refined | None:
+    """Find the tube afresh from the held base and refine it; None if not found."""
+    det = detect(image, base_hint=_base_col_row(prev))
+    if det is None:
+        return None
+    start = fit_to_polyline(det.path, prev.base_angle, n_coef=prev.coef.size)
+    start = replace(start, base=prev.base)
+    r = refine(image, start, look, iterations=10, tol_px=tol)
+    if not r.tip_found:
+        # a skeleton's length is rough (its end stops short of a rounded tip,
+        # or runs into a spur): look for the end farther out, as on a start
+        reach = max(2.0 * look.mean_half_width, 0.1 * r.curve.length)
+        r = refine(image, r.curve, look, iterations=10, tol_px=tol, tip_window=reach)
+    return r
+
+
+def _reaches_crop_edge(curve: Curve, hw: float, box, shape) -> bool:
+    """Whether the tube, drawn with this centreline, comes within reach of a
+    side of the crop that is not the image's border: the tube may go on
+    beyond it, and the crop's edge may have been taken for the tube's end."""
+    r0, r1, c0, c1 = box
+    if (r0, r1, c0, c1) == (0, shape[0], 0, shape[1]):
+        return False
+    r_lo, r_hi, c_lo, c_hi = _crop_box(curve, hw + 2.0, (np.inf, np.inf))
+    return bool((r0 > 0 and r_lo < r0) or (r1 < shape[0] and r_hi > r1)
+                or (c0 > 0 and c_lo < c0) or (c1 < shape[1] and c_hi > c1))
 
 
 def _base_col_row(curve: Curve):

@@ -57,5 +57,5 @@ def test_settings_reach_the_tracker_and_run_json(tmp_path):
     track_video(folder / "frames", tmp_path / "out", um_per_px=scale,
                 settings=TrackSettings(rounds=1, tol_px=0.1))
     run = json.loads((tmp_path / "out" / "run.json").read_text())
-    assert run["tracker_settings"] == {"rounds": 1, "first_rounds": 8, "tol_px": 0.1,
+    assert run["tracker_settings"] == {"rounds": 1, "first_rounds": 20, "tol_px": 0.1,
                                        "widths_per_coef": 0.75}
