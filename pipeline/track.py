@@ -280,6 +280,9 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
         if isinstance(result, tuple):  # (re)initialised: a new look, a new history
             result, look = result
             history = []
+            if base_hint is None and held_base is not None and result.base_source:
+                # the restart was given the base found before, not the user's --base
+                result = replace(result, base_source="kept from an earlier frame")
         if result.ok:
             history = (history + [result.curve])[-2:]
             lost_run = 0

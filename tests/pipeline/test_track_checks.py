@@ -4,7 +4,7 @@ import cv2
 import numpy as np
 
 from pipeline.render import Renderer, default_scene, truth_tables
-from pipeline.track import MAX_LENGTH_STEP, track_frames
+from pipeline.track import MAX_LENGTH_STEP, RESTART_AFTER, track_frames
 
 LOOK = {"name": "opaque", "photons": 0.0, "read_noise": 0.0, "flicker": 0.0, "dust": 0}
 
@@ -55,3 +55,21 @@ def test_every_frame_of_a_clean_scene_is_measured_with_its_length():
     assert all(r.ok for r in results)
     lengths = np.array([r.curve.length for r in results]) * scale
     assert np.max(np.abs(lengths / truth["length_um"].to_numpy() - 1)) < 0.01
+
+
+def test_a_restart_keeps_the_base_found_before():
+    frames, truth, scale = _frames()
+    blank = np.full_like(frames[0], int(np.median(frames[0])))
+    gone = range(2, 2 + RESTART_AFTER)
+    for k in gone:
+        frames[k] = blank
+    results = list(track_frames(frames))
+    assert not any(results[k].ok for k in gone)
+    assert all("lost" in results[k].status or "no tube" in results[k].status for k in gone)
+    again = results[2 + RESTART_AFTER]
+    assert again.ok and again.stage == "init"
+    assert again.base_source == "kept from an earlier frame"
+    assert results[0].base_source != again.base_source
+    assert abs(again.curve.base - results[0].curve.base) < 0.5
+    k = 2 + RESTART_AFTER
+    assert abs(np.degrees(again.bend_angle_rad) - truth["bend_angle_deg"][k]) < 2.0
