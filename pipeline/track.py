@@ -342,11 +342,14 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
                tol_px=tol)
     stage = "crossing" if crossing else "fast"
     work = crop.size / frame.size
-    cut = _reaches_crop_edge(r.curve, hw, (r0, r1, c0, c1), frame.shape)
+    whole = (r0, r1, c0, c1) == (0, frame.shape[0], 0, frame.shape[1])
+    image = crop if whole else None      # the float frame, made once when needed
+    cut = not whole and _reaches_crop_edge(r.curve, hw, (r0, r1, c0, c1), frame.shape)
     if cut or not accept(r):
-        image = as_float(frame)
+        image = as_float(frame) if image is None else image
         cands = [] if cut else [r]
-        for start in (pred, history[-1]):
+        # without a velocity the prediction is the last shape itself: one start
+        for start in ((pred,) if pred is history[-1] else (pred, history[-1])):
             cands.append(refine(image, start, look, window=1.5 * hw, iterations=10,
                                 avoid_contact=crossing or self_contact(start, hw),
                                 tol_px=tol))
@@ -364,7 +367,7 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
         # far from this one for Gauss–Newton (a fast bend: 100° per frame ended
         # 60° short and looked fine), so the tube is also found afresh and the
         # better fit kept; once per start
-        cand = _redetect(as_float(frame), history[-1], look, tol)
+        cand = _redetect(image, history[-1], look, tol)
         if cand is not None and accept(cand) and _score(cand) > _score(r):
             r, stage, work = cand, "redetect", 1.0
     if not accept(r):
@@ -403,8 +406,6 @@ def _reaches_crop_edge(curve: Curve, hw: float, box, shape) -> bool:
     side of the crop that is not the image's border: the tube may go on
     beyond it, and the crop's edge may have been taken for the tube's end."""
     r0, r1, c0, c1 = box
-    if (r0, r1, c0, c1) == (0, shape[0], 0, shape[1]):
-        return False
     r_lo, r_hi, c_lo, c_hi = _crop_box(curve, hw + 2.0, (np.inf, np.inf))
     return bool((r0 > 0 and r_lo < r0) or (r1 < shape[0] and r_hi > r1)
                 or (c0 > 0 and c_lo < c0) or (c1 < shape[1] and c_hi > c1))

@@ -66,10 +66,10 @@ def test_a_restart_keeps_the_base_found_before():
     results = list(track_frames(frames))
     assert not any(results[k].ok for k in gone)
     assert all("lost" in results[k].status or "no tube" in results[k].status for k in gone)
-    again = results[2 + RESTART_AFTER]
+    k = 2 + RESTART_AFTER
+    again = results[k]
     assert again.ok and again.stage == "init"
     assert again.base_source == "kept from an earlier frame"
     assert results[0].base_source != again.base_source
     assert abs(again.curve.base - results[0].curve.base) < 0.5
-    k = 2 + RESTART_AFTER
     assert abs(np.degrees(again.bend_angle_rad) - truth["bend_angle_deg"][k]) < 2.0

@@ -193,10 +193,11 @@ def test_a_dim_section_is_not_taken_for_the_pipette(tmp_path):
 @pytest.mark.parametrize(("sample", "size", "n_frames"), [(3, (320, 240), 8), (1, (200, 160), 4)],
                          ids=["39deg-per-frame", "100deg-per-frame"])
 def test_a_fast_bend_right_after_the_start_is_still_followed(tmp_path, sample, size, n_frames):
-    """On the frame after a start only the last shape predicts the next. A bend
-    that moved fast ran the tube out of the crop (whose edge passed for the
-    tip: 8 deg short) or out of Gauss–Newton's reach (110 deg short, then two
-    frames lost), and both frames were marked ok."""
+    """On the frame after a start only the last shape predicts the next. At 39°
+    per frame the tube ran out of the crop, whose edge passed for the tip (8°
+    short, marked ok). At 100° per frame, refining the last shape on the whole
+    frame alone ended 110° short and lost the next two frames: the fresh
+    detection on that frame is what follows it."""
     errors, acc, tracks, truth = _render_and_track(tmp_path, sample, seed=1, width=size[0],
                                                    height=size[1], n_frames=n_frames)
     lost = errors.loc[errors[S.STATUS] != S.STATUS_OK, [S.FRAME, S.STATUS]]
