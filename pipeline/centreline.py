@@ -69,6 +69,11 @@ class Basis:
         B_k''(u) at those nodes, each row scaled by the square root of its
         Simpson weight: ``quad_second.T @ quad_second`` is ``roughness``, and
         a subset of the rows gives the roughness of part of the curve.
+    roughness_trace : float
+        Trace of ``roughness`` for the same knot spacing without joints: the
+        scale the roughness penalty is weighed against (a triple knot's
+        functions bend sharply and would inflate the trace, weakening the
+        penalty everywhere else).
     """
 
     u: np.ndarray
@@ -79,6 +84,7 @@ class Basis:
     roughness_first: np.ndarray
     quad_u: np.ndarray
     quad_second: np.ndarray
+    roughness_trace: float
 
     @property
     def n_coef(self) -> int:
@@ -89,16 +95,47 @@ class Basis:
         return self.u.size
 
 
-@lru_cache(maxsize=32)
-def make_basis(n_coef: int, n_grid: int) -> Basis:
-    """Clamped cubic B-spline basis with ``n_coef`` free functions on ``n_grid`` nodes."""
+def knot_vector(n_coef: int, joints: tuple[float, ...] = ()) -> np.ndarray:
+    """Knots of a clamped cubic spline with ``n_coef`` free functions (B_0 left out).
+
+    Without joints the interior knots are uniform. Each joint (a section
+    joint, as a fraction of the length) gets a triple knot, so that φ stays
+    continuous there but its slope, the curvature, may step, as it does
+    where a tube's walls change; the other knots are spread uniformly within
+    each section, at about the spacing they would have without joints. A
+    joint costs two coefficients: ``n_coef`` must be ≥ 3 + 3·len(joints).
+    """
+    joints = tuple(float(j) for j in joints)
+    if n_coef < 3 + 3 * len(joints):
+        raise ValueError(f"n_coef must be >= {3 + 3 * len(joints)} with {len(joints)} "
+                         f"joint(s), got {n_coef}")
+    if any(not 0 < j < 1 for j in joints) or any(np.diff(joints) <= 0):
+        raise ValueError(f"joints must be increasing fractions strictly inside (0, 1), "
+                         f"got {joints}")
+    n_spans = n_coef - 2 - 2 * len(joints)
+    ends = np.array([0.0, *joints, 1.0])
+    share = np.diff(ends) * n_spans
+    spans = np.maximum(1, np.floor(share)).astype(int)
+    while spans.sum() < n_spans:
+        spans[np.argmax(share - spans)] += 1
+    while spans.sum() > n_spans:
+        spans[np.argmax(np.where(spans > 1, spans - share, -np.inf))] -= 1
+    interior = []
+    for i, (a, b) in enumerate(zip(ends[:-1], ends[1:], strict=True)):
+        if i:
+            interior += [a] * 3
+        interior += list(np.linspace(a, b, spans[i] + 1)[1:-1])
+    return np.concatenate([np.zeros(4), interior, np.ones(4)])
+
+
+@lru_cache(maxsize=64)
+def make_basis(n_coef: int, n_grid: int, joints: tuple[float, ...] = ()) -> Basis:
+    """Clamped cubic B-spline basis with ``n_coef`` free functions on ``n_grid``
+    nodes, with a triple knot at every joint (:func:`knot_vector`)."""
     if n_coef < 3:
         raise ValueError(f"n_coef must be >= 3, got {n_coef}")
     degree = 3
-    n_interior = n_coef + 1 - (degree + 1)
-    knots = np.concatenate([np.zeros(degree + 1),
-                            np.linspace(0, 1, n_interior + 2)[1:-1],
-                            np.ones(degree + 1)])
+    knots = knot_vector(n_coef, joints)
     u = np.linspace(0.0, 1.0, n_grid)
     full = BSpline.design_matrix(u, knots, degree).toarray()
     values = np.ascontiguousarray(full[:, 1:])
@@ -111,24 +148,37 @@ def make_basis(n_coef: int, n_grid: int) -> Basis:
     first_mid = 0.5 * (full[1:, 0] + full[:-1, 0])
     for arr in (u, values, mid, roughness, first_mid, roughness_first, quad_u, quad_second):
         arr.flags.writeable = False
-    return Basis(u, values, mid, roughness, first_mid, roughness_first, quad_u, quad_second)
+    trace = (float(np.trace(roughness)) if not joints
+             else make_basis(n_coef - 2 * len(joints), n_grid).roughness_trace)
+    return Basis(u, values, mid, roughness, first_mid, roughness_first, quad_u, quad_second,
+                 trace)
+
+
+def basis_of(curve: Curve, n_grid: int | None = None) -> Basis:
+    """The basis ``curve`` is written in, on ``n_grid`` nodes (default: ≤ 2 px apart)."""
+    return make_basis(curve.coef.size, n_grid or n_grid_for(curve.length), curve.joints)
 
 
 def _second_derivatives(knots: np.ndarray, n_coef: int):
     """Simpson nodes of every knot span and B_j''(u)·√weight at them, for all
     n_coef + 1 basis functions, B_0 first (second derivatives are piecewise
-    linear, so Simpson's rule on each span is exact for ∫ B_j'' B_k'' du)."""
+    linear, so Simpson's rule on each span is exact for ∫ B_j'' B_k'' du).
+
+    B'' is evaluated inside each span, at its quarter points, and extended
+    linearly to the span's ends: at a triple knot it jumps, and its value
+    there belongs to neither side.
+    """
     spans = np.unique(knots)
-    pairs = list(zip(spans[:-1], spans[1:], strict=True))
-    nodes = np.concatenate([np.linspace(a, b, 3) for a, b in pairs])
-    weights = np.concatenate([(b - a) / 6 * np.array([1.0, 4.0, 1.0])
-                              for a, b in pairs])
-    second = np.empty((nodes.size, n_coef + 1))
-    for j in range(n_coef + 1):
-        coef = np.zeros(n_coef + 1)
-        coef[j] = 1.0
-        second[:, j] = BSpline(knots, coef, 3).derivative(2)(nodes)
-    return nodes, second * np.sqrt(weights)[:, None]
+    a, b = spans[:-1], spans[1:]
+    inner = np.concatenate([a + 0.25 * (b - a), a + 0.75 * (b - a)])
+    at = BSpline(knots, np.eye(n_coef + 1), 3)(inner, nu=2)
+    f1, f2 = at[:a.size], at[a.size:]
+    # per span: the values at its start, middle and end
+    second = np.stack([1.5 * f1 - 0.5 * f2, 0.5 * (f1 + f2), 1.5 * f2 - 0.5 * f1], axis=1)
+    second = second.reshape(-1, n_coef + 1)
+    nodes = np.stack([a, 0.5 * (a + b), b], axis=1).ravel()
+    weights = ((b - a) / 6)[:, None] * np.array([1.0, 4.0, 1.0])
+    return nodes, second * np.sqrt(weights.ravel())[:, None]
 
 
 @dataclass(frozen=True)
@@ -145,12 +195,16 @@ class Curve:
         Arc length, px.
     coef : (K,) ndarray
         Spline coefficients of φ(u) − φ_base, rad.
+    joints : tuple of float
+        Section joints, as fractions of the length, where the curvature may
+        step (:func:`knot_vector`); empty for a smooth tube.
     """
 
     base: complex
     base_angle: float
     length: float
     coef: np.ndarray
+    joints: tuple[float, ...] = ()
 
     def with_params(self, coef, length) -> Curve:
         return replace(self, coef=np.asarray(coef, dtype=float), length=float(length))
@@ -232,7 +286,7 @@ def n_grid_for(length_px: float) -> int:
 
 
 def fit_to_polyline(points, base_angle: float, *, n_coef: int, n_grid: int | None = None,
-                    iterations: int = 4) -> Curve:
+                    iterations: int = 4, joints: tuple[float, ...] = ()) -> Curve:
     """A curve through an ordered polyline (base first), e.g. a skeleton path.
 
     The base is the first point; the length is the polyline's; the spline is
@@ -245,7 +299,10 @@ def fit_to_polyline(points, base_angle: float, *, n_coef: int, n_grid: int | Non
         Ordered points, px (y up), M ≥ 2.
     base_angle : float
         Base tangent direction, rad.
+    joints : tuple of float, optional
+        Section joints, fractions of the length (:func:`knot_vector`).
     """
+    joints = tuple(float(j) for j in joints)
     pts = np.asarray(points, dtype=complex)
     seg = np.abs(np.diff(pts))
     keep = np.concatenate([[True], seg > 1e-9])
@@ -256,17 +313,18 @@ def fit_to_polyline(points, base_angle: float, *, n_coef: int, n_grid: int | Non
     if length <= 0:
         raise ValueError("cannot fit a curve to a polyline of zero length")
     n_grid = n_grid or n_grid_for(length)
-    basis = make_basis(n_coef, n_grid)
+    basis = make_basis(n_coef, n_grid, joints)
     u_mid = 0.5 * (s[1:] + s[:-1]) / length
     ang = np.unwrap(np.angle(np.diff(pts)))
     # bring the unwrapped chord angles to the branch nearest the base angle
     ang += 2 * np.pi * np.round((base_angle - ang[0]) / (2 * np.pi))
-    design = BSpline.design_matrix(np.clip(u_mid, 0, 1), _knots(n_coef), 3).toarray()[:, 1:]
+    knots = knot_vector(n_coef, joints)
+    design = BSpline.design_matrix(np.clip(u_mid, 0, 1), knots, 3).toarray()[:, 1:]
     # chord-length-weighted least squares, lightly regularised for empty knot spans
     weighted = design.T * (seg / seg.sum())
     coef = np.linalg.solve(weighted @ design + 1e-6 * np.eye(n_coef),
                            weighted @ (ang - base_angle))
-    curve = Curve(complex(pts[0]), float(base_angle), length, coef)
+    curve = Curve(complex(pts[0]), float(base_angle), length, coef, joints)
     target = np.interp(basis.u * length, s, pts.real) + 1j * np.interp(basis.u * length, s,
                                                                         pts.imag)
     for _ in range(iterations):
@@ -282,12 +340,6 @@ def fit_to_polyline(points, base_angle: float, *, n_coef: int, n_grid: int | Non
     return curve
 
 
-@lru_cache(maxsize=32)
-def _knots(n_coef: int) -> np.ndarray:
-    n_interior = n_coef + 1 - 4
-    return np.concatenate([np.zeros(4), np.linspace(0, 1, n_interior + 2)[1:-1], np.ones(4)])
-
-
 def resample(curve: Curve, spacing_px: float = 1.0):
     """Points at uniform arc-length spacing ≤ ``spacing_px``, base to tip.
 
@@ -299,11 +351,11 @@ def resample(curve: Curve, spacing_px: float = 1.0):
         Points, px (y up).
     """
     n = int(np.ceil(curve.length / spacing_px)) + 1
-    basis = make_basis(curve.coef.size, max(n, 2))
+    basis = basis_of(curve, max(n, 2))
     smp = evaluate(curve, basis)
     return basis.u * curve.length, smp.z
 
 
 def tip_point(curve: Curve) -> complex:
     """The end of the centreline, px (y up), on the curve's exact grid."""
-    return complex(evaluate(curve, make_basis(curve.coef.size, n_grid_for(curve.length))).z[-1])
+    return complex(evaluate(curve, basis_of(curve)).z[-1])

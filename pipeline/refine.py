@@ -15,7 +15,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .centreline import Curve, evaluate, jacobian, make_basis, n_grid_for
+from .centreline import Curve, basis_of, evaluate, jacobian
 from .profiles import edge_pairs, end_edge, sample_lines
 
 #: Edge-midpoint scatter (px) up to which the roughness penalty keeps its
@@ -81,6 +81,11 @@ class Refined:
     iterations : int
     strength : float
         Median inward edge step of the valid profiles, intensity per px.
+    usable : (M,) bool ndarray, optional
+        Profiles not dropped because the tube crosses itself there.
+    midpoints : (M,) complex ndarray, optional
+        The measured centre of the tube on each profile (midway between its
+        edges), full-frame px (y up); NaN where invalid.
     """
 
     curve: Curve
@@ -92,6 +97,7 @@ class Refined:
     iterations: int
     strength: float
     usable: np.ndarray | None = None
+    midpoints: np.ndarray | None = None
 
     @property
     def valid_fraction(self) -> float:
@@ -175,7 +181,7 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
     hw = look.mean_half_width
     window = 0.5 * hw if window is None else window
     shift = complex(origin[0], -origin[1])  # full frame → crop, y up
-    basis = make_basis(curve.coef.size, n_grid_for(curve.length))
+    basis = basis_of(curve)
     idx, offsets, step = _profile_layout(curve, look, basis.n_grid, window, width_tol)
     u = basis.u[idx]
     hw_u = look.half_width_at(u)
@@ -237,7 +243,7 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
         b_vec = np.concatenate(b_rows)
         lhs = a_mat.T @ a_mat
         rhs = a_mat.T @ b_vec
-        pen = smoothing * np.trace(lhs[:k, :k]) / np.trace(basis.roughness)
+        pen = smoothing * np.trace(lhs[:k, :k]) / basis.roughness_trace
         if valid.sum() >= 8:
             # a smoothing spline's penalty weighs against the data's scatter: on
             # noisy frames (blur, shot noise, low contrast) the tip tangent, the
@@ -282,7 +288,9 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
     rms = float(np.sqrt(np.mean(res**2))) if res.size else np.inf
     width = np.where(edges.valid, edges.width, np.nan)
     strength = float(np.median(edges.strength[edges.valid])) if res.size else 0.0
-    return Refined(curve, u, width, edges.valid, rms, tip_found, it, strength, ~near)
+    mids = np.where(edges.valid, smp.z[idx] + normals * np.where(edges.valid, edges.centre, 0),
+                    np.nan)
+    return Refined(curve, u, width, edges.valid, rms, tip_found, it, strength, ~near, mids)
 
 
 def _tip_offset(image, smp, shift, look: TubeLook, window: float, step: float, *,
@@ -348,7 +356,7 @@ def contact_mask(z: np.ndarray, idx: np.ndarray, *, reach: float, gap: float,
 
 def self_contact(curve: Curve, half_width: float) -> bool:
     """Whether the tube, drawn with this centreline, touches or crosses itself."""
-    basis = make_basis(curve.coef.size, n_grid_for(curve.length))
+    basis = basis_of(curve)
     z = evaluate(curve, basis).z
     gap = basis.u[1] * curve.length
     idx = np.arange(0, z.size, max(1, int(half_width / (2 * gap))))

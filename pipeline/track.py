@@ -16,6 +16,10 @@ Per frame, only the work the frame needs (cheapest first):
 4. **redetect** — if that fails too, find the tube from scratch
    (:mod:`pipeline.segment`) keeping the known base, and refine.
 
+Section joints (where the walls change, so the curvature steps) are given by
+the sample, or looked for each time the bend has grown by a quarter
+(:mod:`pipeline.joints`): a joint found gets a triple knot in the spline.
+
 A frame that none of these can measure keeps NaN measurements and a status
 saying why; tracking goes on with the last good shape as the prediction.
 """
@@ -29,13 +33,13 @@ import numpy as np
 
 from .centreline import (
     Curve,
+    basis_of,
     evaluate,
     fit_to_polyline,
-    make_basis,
     n_coef_for,
-    n_grid_for,
     tip_point,
 )
+from .joints import find_joints, rewritten, same_joints
 from .refine import Refined, TubeLook, locate_base, refine, self_contact
 from .segment import detect
 
@@ -47,6 +51,11 @@ MIN_COVERAGE = 0.3
 MAX_LENGTH_STEP = 0.08
 #: Consecutive lost frames after which the tracker starts from scratch.
 RESTART_AFTER = 5
+#: Bend (deg) from which the tracker looks for the section joints, where the
+#: curvature steps, when they are not given; it looks again each time the bend
+#: has grown by :data:`JOINT_CHECK_GROWTH` (a step shows more the more it bends).
+JOINT_CHECK_DEG = 45.0
+JOINT_CHECK_GROWTH = 1.25
 
 
 @dataclass(frozen=True)
@@ -163,11 +172,12 @@ def _learn_widths(refined: Refined, n_bins: int, fallback: float) -> np.ndarray:
 
 
 def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=None,
-               settings: TrackSettings | None = None):
+               settings: TrackSettings | None = None, joints: tuple[float, ...] = ()):
     """Find the tube from scratch and learn its look.
 
     ``settings`` (default :class:`TrackSettings`) sets the spline's size and
-    the refinements' convergence tolerance.
+    the refinements' convergence tolerance; ``joints`` are the tube's section
+    joints, as fractions of its length, where its curvature may step.
 
     Returns
     -------
@@ -182,8 +192,10 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
         return None
     hw = det.half_width
     length = float(np.abs(np.diff(det.path)).sum())
-    n_coef = n_coef_for(length, 2 * hw, widths_per_coef=settings.widths_per_coef)
-    curve = fit_to_polyline(det.path, det.base_angle, n_coef=n_coef)
+    # a joint's triple knot costs two coefficients: the other knots keep their spacing
+    n_coef = (n_coef_for(length, 2 * hw, widths_per_coef=settings.widths_per_coef)
+              + 2 * len(joints))
+    curve = fit_to_polyline(det.path, det.base_angle, n_coef=n_coef, joints=joints)
     best = None
     for polarity in (-1, 1):
         look = TubeLook(polarity, np.full(9, hw), 0.0)
@@ -208,10 +220,28 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
                    smoothing=0.1, tip_window=wide_tip, tol_px=tol, tip_stiffness=0.0)
         look = TubeLook(polarity, _learn_widths(r, 9, look.mean_half_width), r.strength)
     if base_hint is None:
-        r = replace(r, curve=locate_base(image, r.curve, look))
+        # the skeleton may run on into a faint pipette that stops short of the
+        # border (no width step at the border to tell): then no tube edges are
+        # found over the first stretch, and the search for the tube's start
+        # must reach past it
+        hw0 = float(look.half_width[0])
+        reach = max(4.0 * hw0, _leading_gap(r) + 2.0 * hw0)
+        r = replace(r, curve=locate_base(image, r.curve, look, reach=reach))
     r = refine(image, r.curve, look, iterations=6, free_base=True, smoothing=0.1, tol_px=tol)
     r = refine(image, r.curve, look, iterations=4, tol_px=tol)
     return r, look, det.base_source
+
+
+def _leading_gap(r: Refined, run: int = 3) -> float:
+    """Arc length from the base to the first of ``run`` consecutive profiles
+    that found the tube's edges, px (0 if there is none)."""
+    ok = r.valid.astype(int)
+    if ok.size < run:
+        return 0.0
+    runs = np.convolve(ok, np.ones(run, int), mode="valid") == run
+    if not runs.any():
+        return 0.0
+    return float(r.u[int(np.argmax(runs))] * r.curve.length)
 
 
 def _predict(history: list[Curve]) -> Curve:
@@ -222,7 +252,7 @@ def _predict(history: list[Curve]) -> Curve:
 
 
 def _crop_box(curve: Curve, margin: float, shape):
-    basis = make_basis(curve.coef.size, n_grid_for(curve.length))
+    basis = basis_of(curve)
     z = evaluate(curve, basis).z
     col, row = z.real, -z.imag
     r0 = int(max(0, np.floor(row.min() - margin)))
@@ -245,7 +275,8 @@ def _score(r: Refined) -> float:
 
 def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
                  first_detection=None, progress: Callable[[int], None] | None = None,
-                 settings: TrackSettings | None = None) -> Iterator[FrameTrack]:
+                 settings: TrackSettings | None = None,
+                 joints: tuple[float, ...] = ()) -> Iterator[FrameTrack]:
     """Track the tube through ``frames`` (2-D arrays, any of uint8/uint16/float).
 
     Parameters
@@ -263,6 +294,10 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
         Called with each frame index once it is done.
     settings : TrackSettings, optional
         The knobs that trade accuracy for speed (default: ``TrackSettings()``).
+    joints : tuple of float, optional
+        The tube's section joints, as fractions of its length from the base
+        (e.g. from the sample's sections), where the curvature may step; the
+        centreline's spline gets a triple knot at each.
 
     Yields
     ------
@@ -274,15 +309,27 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
     history: list[Curve] = []
     lost_run = 0
     held_base = base_hint
+    joints = given = tuple(float(j) for j in joints)
+    # the joints are looked for in the frames only when they were not given
+    search_from = np.inf if given else np.radians(JOINT_CHECK_DEG)
     for index, frame in enumerate(frames):
         det = first_detection if index == 0 else None
-        result = _track_one(index, frame, look, history, held_base, base_end, det, settings)
+        search = bool(history) and abs(history[-1].coef[-1]) >= search_from
+        result = _track_one(index, frame, look, history, held_base, base_end, det, settings,
+                            joints, search)
         if isinstance(result, tuple):  # (re)initialised: a new look, a new history
             result, look = result
             history = []
             if base_hint is None and held_base is not None and result.base_source:
                 # the restart was given the base found before, not the user's --base
                 result = replace(result, base_source="kept from an earlier frame")
+        if search and result.ok:
+            search_from = JOINT_CHECK_GROWTH * abs(result.curve.coef[-1])
+        if result.ok and result.curve.joints != joints:
+            # joints found on this frame: the shapes that predict the next frames
+            # are rewritten with them (their coefficients are extrapolated)
+            joints = result.curve.joints
+            history = [rewritten(h, joints) for h in history]
         if result.ok:
             history = (history + [result.curve])[-2:]
             lost_run = 0
@@ -299,13 +346,14 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
             progress(index)
 
 
-def _track_one(index, frame, look, history, base_hint, base_end, detection, settings):
+def _track_one(index, frame, look, history, base_hint, base_end, detection, settings,
+               joints, search_joints):
     if frame.ndim != 2:
         raise ValueError(f"frame {index} is not a greyscale 2-D array: shape {frame.shape}")
     if look is None or not history:
         image = as_float(frame)
         init = initialise(image, base_hint=base_hint, base_end=base_end, detection=detection,
-                          settings=settings)
+                          settings=settings, joints=joints)
         if init is None:
             return FrameTrack(index, "no tube found", None, "")
         r, look, source = init
@@ -377,6 +425,17 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
                   else "lost: tip not found" if not r.tip_found
                   else "lost: edges do not fit a smooth tube")
         return FrameTrack(index, reason, None, stage, r.residual_px, r.valid_fraction, work)
+    if search_joints:
+        # where the tube kinks away from the fit, a section joint: refit with a
+        # triple knot there (kept only if that fit passes the same checks)
+        # (afresh on every look: the more the tube bends, the clearer its kinks)
+        found = find_joints(r.curve, r.u, r.midpoints, hw)
+        if not same_joints(found, r.curve.joints, 0.2 * hw / r.curve.length):
+            image = as_float(frame) if image is None else image
+            cand = refine(image, rewritten(r.curve, found), look, iterations=10,
+                          avoid_contact=crossing, tol_px=tol)
+            if accept(cand):
+                r = cand
     # the unwrapped angle must move continuously: a jump of ~a turn is a slip
     jump = abs(r.curve.coef[-1] - history[-1].coef[-1])
     if jump > np.pi:
@@ -390,7 +449,8 @@ def _redetect(image, prev: Curve, look: TubeLook, tol: float) -> Refined | None:
     det = detect(image, base_hint=_base_col_row(prev))
     if det is None:
         return None
-    start = fit_to_polyline(det.path, prev.base_angle, n_coef=prev.coef.size)
+    start = fit_to_polyline(det.path, prev.base_angle, n_coef=prev.coef.size,
+                            joints=prev.joints)
     start = replace(start, base=prev.base)
     r = refine(image, start, look, iterations=10, tol_px=tol)
     if not r.tip_found:

@@ -20,7 +20,7 @@ import pandas as pd
 from . import schema as S
 from .atomic import write_csv, write_json
 from .centreline import Curve, resample, tip_point
-from .track import FrameTrack, TrackSettings, track_frames
+from .track import JOINT_CHECK_DEG, FrameTrack, TrackSettings, track_frames
 
 
 def scale_from_length(results: list[FrameTrack], length_um: float) -> tuple[float, int]:
@@ -89,7 +89,8 @@ def curve_record(curve: Curve) -> dict:
     """A curve as plain JSON-able numbers (for run.json / re-use)."""
     return {"base_col": curve.base.real, "base_row": -curve.base.imag,
             "base_angle_deg": float(np.degrees(curve.base_angle)),
-            "length_px": curve.length, "coef": [float(c) for c in curve.coef]}
+            "length_px": curve.length, "coef": [float(c) for c in curve.coef],
+            "joints": [float(j) for j in curve.joints]}
 
 
 # -- the whole job: frames in, files out ----------------------------------------------
@@ -184,6 +185,8 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
         raise ValueError(f"--fps must be a positive number, got {fps!r}")
     base_hint = _parse_base(base)
     settings = settings or TrackSettings()
+    # the sample's section joints, where the tube's curvature steps
+    joints = () if sample is None else tuple(float(f) for f in np.cumsum(sample.fractions)[:-1])
     out_dir = Path(out_dir)
     start = time.perf_counter()
     with open_frames(source) as reader:
@@ -201,7 +204,7 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
                                             else _static_end(reader))
         results = list(track_frames(iter(reader), base_hint=base_hint, base_end=base_end,
                                     first_detection=first_det, progress=tick,
-                                    settings=settings))
+                                    settings=settings, joints=joints))
     runtime = time.perf_counter() - start
     if not results:
         raise ValueError(f"{source}: no frames to track")
@@ -215,6 +218,7 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
     lines = centrelines_table(results, scale)
     stages = Counter(r.stage for r in results if r.stage)
     notes = _notes(results, stages, base_hint is not None, rate)
+    notes.append(_joints_note(results, sample if joints else None))
     if motion_note:
         notes.append(motion_note)
     base_source = "given (--base)" if base_hint else next(
@@ -288,6 +292,22 @@ def _notes(results, stages, base_given: bool, rate) -> list[str]:
         reasons = Counter(r.status for r in lost)
         notes.append("not measured: " + "; ".join(f"{k} ({v} frames)" for k, v in reasons.items()))
     return notes
+
+
+def _joints_note(results, sample) -> str:
+    """Where the centreline was allowed to kink (section joints), and why."""
+    good = [r for r in results if r.ok]
+    last = good[-1].curve.joints if good else ()
+    where = ", ".join(f"{j:.3f}" for j in last)
+    if sample is not None:
+        return f"section joints from sample {sample.name}'s sections at u = {where} of the length"
+    if last:
+        first = next(r.frame for r in good if r.curve.joints)
+        return (f"section joints found where the shape kinks, at u = {where} of the length "
+                f"(first on frame {first}; looked for on frames bent >= "
+                f"{JOINT_CHECK_DEG:g} deg)")
+    return (f"section joints: none found (looked for on frames bent >= {JOINT_CHECK_DEG:g} deg:"
+            " the curvature did not step measurably); give --sample to use its sections")
 
 
 def _run_record(run: TrackRun, source, rate, results, settings: TrackSettings) -> dict:

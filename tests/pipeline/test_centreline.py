@@ -6,6 +6,7 @@ from pipeline.centreline import (
     evaluate,
     fit_to_polyline,
     jacobian,
+    knot_vector,
     make_basis,
     n_grid_for,
     resample,
@@ -93,3 +94,61 @@ def test_partial_roughness_leaves_arcs_alone_and_sums_to_the_whole():
     # ... while a change of curvature near the tip is penalised there
     kink = np.where(greville[1:] > 0.9, (greville[1:] - 0.9) ** 2, 0.0)
     assert (tip @ kink) @ (tip @ kink) > 0.5 * kink @ basis.roughness @ kink
+
+
+# -- section joints: triple knots where the curvature may step ----------------------------------
+def _two_arcs(split=0.7, length=600.0, k1=1 / 90, k2=1 / 900, n=4001):
+    """A polyline whose curvature steps from k1 to k2 at ``split`` of its length."""
+    s = np.linspace(0, length, n)
+    phi = np.where(s < split * length, k1 * s, k1 * split * length + k2 * (s - split * length))
+    chords = np.diff(s) * np.exp(1j * 0.5 * (phi[1:] + phi[:-1]))
+    return np.concatenate([[0j], np.cumsum(chords)]), phi
+
+
+def test_knot_vector_puts_a_triple_knot_at_each_joint_and_keeps_the_count():
+    knots = knot_vector(19, (0.6, 0.9))
+    assert knots.size == 19 + 1 + 4  # n_coef free functions + B_0 + degree + 1
+    for j in (0.6, 0.9):
+        assert np.sum(np.isclose(knots, j)) == 3
+    inner = np.unique(knots)
+    assert np.ptp(np.diff(inner)) < 0.05  # the other knots keep an even spacing
+    assert np.array_equal(knot_vector(12), make_basis_knots_uniform(12))
+
+
+def make_basis_knots_uniform(n_coef):
+    return np.concatenate([np.zeros(4), np.linspace(0, 1, n_coef - 1)[1:-1], np.ones(4)])
+
+
+@pytest.mark.parametrize("joints", [(0.0, 0.5), (0.5, 0.5), (0.7, 0.3), (1.2,)])
+def test_knot_vector_refuses_joints_outside_or_out_of_order(joints):
+    with pytest.raises(ValueError, match="joints"):
+        knot_vector(20, joints)
+
+
+def test_a_joint_lets_the_spline_follow_a_curvature_step_exactly():
+    z, phi = _two_arcs()
+    smooth = fit_to_polyline(z, 0.0, n_coef=14)
+    jointed = fit_to_polyline(z, 0.0, n_coef=16, joints=(0.7,))
+    assert jointed.joints == (0.7,)
+    # the tip angle: exact with the joint, ringing by a visible amount without
+    assert jointed.coef[-1] == pytest.approx(phi[-1], abs=1e-4)
+    assert abs(smooth.coef[-1] - phi[-1]) > 20 * abs(jointed.coef[-1] - phi[-1])
+    _, zr = resample(jointed, 1.0)
+    assert np.abs(zr[-1] - z[-1]) < 1e-2
+
+
+def test_roughness_with_joints_is_exact_and_ignores_the_kink():
+    basis = make_basis(16, 301, (0.7,))
+    # φ piecewise linear with its kink at the joint: no roughness at all
+    from scipy.interpolate import make_lsq_spline
+    u = np.linspace(0, 1, 2001)
+    phi = np.where(u < 0.7, 3 * u, 2.1 + 0.4 * (u - 0.7))
+    spline = make_lsq_spline(u, phi, knot_vector(16, (0.7,)), k=3)
+    coef = spline.c[1:] - spline.c[0]
+    assert abs(coef @ basis.roughness @ coef) < 1e-9
+    # a cubic's ∫φ''² du over [0, 1] is reproduced exactly (φ = u³: 12)
+    cubic = make_lsq_spline(u, u**3, knot_vector(16, (0.7,)), k=3)
+    c = cubic.c[1:] - cubic.c[0]
+    assert c @ basis.roughness @ c == pytest.approx(12.0, rel=1e-9)
+    # the penalty's scale is that of the same spacing without the joint
+    assert basis.roughness_trace == pytest.approx(make_basis(14, 301).roughness_trace)

@@ -226,3 +226,40 @@ def test_over_curl_keeps_the_unwrapped_angle_and_every_frame(tmp_path):
     past_a_turn = truth[S.BEND] > 360
     assert (tracks[S.BEND][past_a_turn] > 360 - ANGLE_MAX_DEG).all()
     _assert_same_sign(tracks, truth)
+
+
+# -- section joints: the curvature steps where the walls change -----------------------------------
+def test_a_tight_curl_with_a_straight_tip_section_is_followed(tmp_path):
+    """Sample 5 curls tightly in its middle section and hardly at all in its
+    last tenth. A spline with uniform knots rounded that curvature step off:
+    37° short at 270°, every frame marked ok. The joints are now found from
+    the kinks in the measured shape, without being told the sample."""
+    errors, acc, tracks, truth = _render_and_track(tmp_path, 5, seed=7, width=640, height=480,
+                                                   n_frames=16)
+    _assert_meets_spec(errors, acc)
+    run = json.loads((tmp_path / "tracked" / S.RUN_FILE).read_text(encoding="utf-8"))
+    assert any("joint" in note for note in run["left_out_and_why"])
+
+
+def test_the_samples_joints_are_used_when_it_is_given(tmp_path):
+    """With --sample the joints come from its sections (fluorescent: too noisy
+    for the kinks to be found from the frames, 40° off without them)."""
+    scene = default_scene(5, seed=7, width=1024, height=768, n_frames=12, look="fluorescent")
+    scene_dir = render_scene(scene, tmp_path / "scene")
+    track_video(scene_dir / json.loads((scene_dir / S.SCENE_FILE).read_text())["frames_file"],
+                tmp_path / "tracked", sample="5")
+    errors, acc = score_folder(scene_dir, tmp_path / "tracked")
+    _assert_angles_and_shape(errors, acc)
+    first = json.loads((tmp_path / "tracked" / S.RUN_FILE).read_text())["first_curve"]
+    assert first["joints"] == pytest.approx([0.6, 0.9])
+
+
+def test_a_faint_pipette_short_of_the_border_is_not_taken_for_tube(tmp_path):
+    """A fluorescent scene whose pipette glows faintly and fades before the
+    border: the skeleton ran 72 px into it, and the base search did not reach
+    the tube's start (length 12 % long)."""
+    errors, acc, tracks, truth = _render_and_track(tmp_path, 7, seed=11, width=800, height=600,
+                                                   n_frames=10, look="fluorescent")
+    assert acc.frames_lost == 0
+    assert acc.length_error_max_pct <= LENGTH_ERROR_PCT
+    assert acc.base_error_max_px <= 1.0

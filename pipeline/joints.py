@@ -1,0 +1,176 @@
+"""Section joints: where a tracked tube's curvature steps.
+
+A shape-engineered microtube is made of sections with different walls, and
+under pressure each section bends at its own curvature: the tangent angle
+φ(s) has a kink (the curvature steps) at every joint. A cubic spline with
+uniform knots cannot follow a kink; it rounds it off and rings, and the tip
+angle comes out biased by degrees on a tube that curls past a turn (and by
+tens of degrees on a tight curl with a short, nearly straight tip section).
+With a triple knot at the joint (:func:`pipeline.centreline.knot_vector`)
+the spline follows it.
+
+When the sections are not known (no ``--sample``), the joints are found
+from the frames: a kink at u_c adds the ramp (u − u_c)₊ to φ, and the joint
+is where adding that ramp to the current fit lowers the residual of the
+measured edge midpoints most. The test is linearised about the current fit,
+so one scan over all candidate positions costs a few milliseconds, and a
+joint is kept only when the drop is large against the midpoints' scatter
+(an F ratio): a tube whose curvature does not step, or a frame too noisy to
+tell, gets none.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .centreline import Curve, basis_of, evaluate, fit_to_polyline, jacobian, resample
+
+#: F ratio (drop of the midpoints' residual sum of squares on adding the kink,
+#: over their scatter per degree of freedom) above which a joint is kept.
+#: Measured on rendered scenes of the eight catalogue samples: true joints
+#: 25–70 and more (63 for sample 1's 0.67 joint at 306°), no joint (or a
+#: second one within a width of a true joint) 5–17.
+MIN_F = 20.0
+#: At most this many joints are looked for.
+MAX_JOINTS = 4
+
+
+def find_joints(curve: Curve, u: np.ndarray, midpoints: np.ndarray, half_width: float, *,
+                keep=(), min_f: float = MIN_F,
+                max_joints: int = MAX_JOINTS) -> tuple[float, ...]:
+    """The section joints a tube's measured shape shows: positions (fractions
+    of the length) where it kinks away from a smooth curve.
+
+    The search starts afresh from a fit to the midpoints with only the joints
+    in ``keep`` (those of ``curve`` are not assumed), and adds one kink at a
+    time, the one that lowers the residual most, while its F ratio is at
+    least ``min_f``.
+
+    Parameters
+    ----------
+    curve : Curve
+        The fitted centreline (with or without joints).
+    u : (M,) ndarray
+        Fractions of the length at which the midpoints were measured.
+    midpoints : (M,) complex ndarray
+        Measured centres of the tube on normal profiles, px (y up); NaN
+        where a profile found no tube.
+    half_width : float
+        The tube's half-width, px: candidates are a fifth of a width apart
+        and at least a width from the ends and from each other.
+    min_f : float
+        Smallest F ratio for a joint to be kept.
+    keep : tuple of float
+        Joints known otherwise (given, or seen as width steps): kept as they are.
+    max_joints : int
+        Most joints in all.
+
+    Returns
+    -------
+    tuple of float
+        All joints, ``keep`` and the ones found, increasing.
+    """
+    ok = np.isfinite(midpoints)
+    u, pts = np.asarray(u, float)[ok], np.asarray(midpoints)[ok]
+    keep = tuple(sorted(float(j) for j in keep))
+    smooth = rewritten(curve, keep)
+    k = smooth.coef.size
+    if u.size < k + 10:
+        return keep
+    basis = basis_of(smooth)
+    idx = np.clip(np.round(u * (basis.n_grid - 1)).astype(int), 0, basis.n_grid - 1)
+    smooth = _fit_midpoints(smooth, basis, idx, pts)
+    smp = evaluate(smooth, basis)
+    normal = smp.normal[idx]
+    resid = np.real(np.conj(normal) * (pts - smp.z[idx]))
+    dz_da, _ = jacobian(smooth, basis, smp)
+    columns = np.real(np.conj(normal)[:, None] * dz_da[idx])
+    width_u = 2.0 * half_width / smooth.length
+    cand = np.arange(width_u, 1.0 - width_u, 0.2 * width_u)
+    if cand.size == 0:
+        return keep
+    # position change from a ramp (u − u_c)₊ added to φ, at the profiles
+    mid_u = 0.5 * (basis.u[1:] + basis.u[:-1])
+    ramp = np.maximum(mid_u[:, None] - cand[None, :], 0.0)
+    shift = np.zeros((basis.n_grid, cand.size), dtype=complex)
+    np.cumsum(1j * smp.chords[:, None] * ramp, axis=0, out=shift[1:])
+    ramps = np.real(np.conj(normal)[:, None] * shift[idx])
+    found: list[float] = []
+    while len(found) + len(keep) < max_joints:
+        q, _ = np.linalg.qr(columns)
+        r_perp = resid - q @ (q.T @ resid)
+        g_perp = ramps - q @ (q.T @ ramps)
+        gg = np.einsum("ij,ij->j", g_perp, g_perp)
+        drop = (g_perp.T @ r_perp) ** 2 / np.maximum(gg, 1e-300)
+        dof = u.size - columns.shape[1] - 1
+        rss = np.maximum(r_perp @ r_perp - drop, 1e-300)
+        f_ratio = drop / (rss / dof)
+        near = gg < 1e-12
+        for j in found + list(keep):
+            near |= np.abs(cand - j) < width_u
+        f_ratio[near] = 0.0
+        best = int(np.argmax(f_ratio))
+        if f_ratio[best] < min_f:
+            break
+        found.append(float(cand[best]))
+        columns = np.concatenate([columns, ramps[:, best:best + 1]], axis=1)
+    return _polish(smooth, idx, pts, keep, sorted(found), width_u)
+
+
+def _polish(smooth: Curve, idx, pts, keep, found: list[float],
+            width_u: float) -> tuple[float, ...]:
+    """Each found joint moved, within ±0.6 widths, to where the spline with
+    triple knots fits the midpoints best: the ramp of the linear scan is not
+    the spline's kink, and its best position strays by up to a width."""
+    joints = list(found)
+    for i in range(len(joints)):
+        best = (np.inf, joints[i])
+        for c in joints[i] + width_u * np.arange(-0.6, 0.61, 0.2):
+            trial = sorted(joints[:i] + [float(c)] + joints[i + 1:] + list(keep))
+            if not 0 < c < 1 or np.any(np.diff([0.0, *trial, 1.0]) < 0.5 * width_u):
+                continue
+            curve = rewritten(smooth, trial)
+            basis = basis_of(curve)
+            curve = _fit_midpoints(curve, basis, idx, pts, iterations=2)
+            smp = evaluate(curve, basis)
+            rss = float(np.sum(np.real(np.conj(smp.normal[idx]) * (pts - smp.z[idx])) ** 2))
+            best = min(best, (rss, float(c)))
+        joints[i] = best[1]
+    return tuple(sorted(joints + list(keep)))
+
+
+def _fit_midpoints(curve: Curve, basis, idx: np.ndarray, pts: np.ndarray,
+                   iterations: int = 4) -> Curve:
+    """Gauss–Newton fit of the spline to the midpoints' normal offsets (length
+    kept; a light roughness penalty for spans no midpoint constrains)."""
+    for _ in range(iterations):
+        smp = evaluate(curve, basis)
+        normal = smp.normal[idx]
+        dz_da, _ = jacobian(curve, basis, smp)
+        a = np.real(np.conj(normal)[:, None] * dz_da[idx])
+        d = np.real(np.conj(normal) * (pts - smp.z[idx]))
+        lhs = a.T @ a
+        pen = 1e-4 * np.trace(lhs) / basis.roughness_trace
+        lhs = lhs + pen * basis.roughness
+        rhs = a.T @ d - pen * basis.roughness @ curve.coef
+        curve = curve.with_params(curve.coef + np.linalg.solve(lhs, rhs), curve.length)
+    return curve
+
+
+def same_joints(a, b, tolerance: float) -> bool:
+    """Whether two joint sets are the same, each joint within ``tolerance``."""
+    return len(a) == len(b) and all(abs(x - y) <= tolerance for x, y in zip(a, b, strict=True))
+
+
+def rewritten(curve: Curve, joints) -> Curve:
+    """``curve`` rewritten with a triple knot at each of ``joints`` (instead of
+    its own), keeping its knot spacing: two coefficients per joint."""
+    joints = tuple(sorted(float(j) for j in joints))
+    if joints == curve.joints:
+        return curve
+    _, z = resample(curve, 1.0)
+    n_coef = curve.coef.size + 2 * (len(joints) - len(curve.joints))
+    out = fit_to_polyline(z, curve.base_angle, n_coef=n_coef, joints=joints)
+    # the same base point exactly (the fit starts at the first resampled point)
+    return Curve(curve.base, curve.base_angle, out.length, out.coef, joints)
+
