@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .centreline import Curve, basis_of, evaluate, fit_to_polyline, jacobian, resample
+from .centreline import Curve, basis_of, evaluate, jacobian, make_basis
 
 #: F ratio (drop of the midpoints' residual sum of squares on adding the kink,
 #: over their scatter per degree of freedom) above which a joint is kept.
@@ -164,13 +164,16 @@ def same_joints(a, b, tolerance: float) -> bool:
 
 def rewritten(curve: Curve, joints) -> Curve:
     """``curve`` rewritten with a triple knot at each of ``joints`` (instead of
-    its own), keeping its knot spacing: two coefficients per joint."""
+    its own), keeping its knot spacing: two coefficients per joint.
+
+    The tangent angle φ(u) is projected onto the new spline by least squares
+    on the curve's grid; base, base angle and length are kept.
+    """
     joints = tuple(sorted(float(j) for j in joints))
     if joints == curve.joints:
         return curve
-    _, z = resample(curve, 1.0)
     n_coef = curve.coef.size + 2 * (len(joints) - len(curve.joints))
-    out = fit_to_polyline(z, curve.base_angle, n_coef=n_coef, joints=joints)
-    # the same base point exactly (the fit starts at the first resampled point)
-    return Curve(curve.base, curve.base_angle, out.length, out.coef, joints)
-
+    old = basis_of(curve)
+    new = make_basis(n_coef, old.n_grid, joints)
+    coef, *_ = np.linalg.lstsq(new.values, old.values @ curve.coef, rcond=None)
+    return Curve(curve.base, curve.base_angle, curve.length, coef, joints)

@@ -410,11 +410,13 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
                                                       and _score(cand) > _score(r))):
                 r = cand
             stage = "redetect"
-    elif len(history) < 2 and not crossing:
+    elif len(history) < 2 and not crossing and _moved(r.curve, history[-1]) > hw:
         # the frame after a start: without a velocity the last shape may be too
         # far from this one for Gauss–Newton (a fast bend: 100° per frame ended
         # 60° short and looked fine), so the tube is also found afresh and the
-        # better fit kept; once per start
+        # better fit kept; once per start. Not needed when the fit found the
+        # tube's edges all along within a half-width of the last shape: the
+        # tube is there (a detection costs as much as ten fast frames)
         cand = _redetect(image, history[-1], look, tol)
         if cand is not None and accept(cand) and _score(cand) > _score(r):
             r, stage, work = cand, "redetect", 1.0
@@ -459,6 +461,19 @@ def _redetect(image, prev: Curve, look: TubeLook, tol: float) -> Refined | None:
         reach = max(2.0 * look.mean_half_width, 0.1 * r.curve.length)
         r = refine(image, r.curve, look, iterations=10, tol_px=tol, tip_window=reach)
     return r
+
+
+def _moved(curve: Curve, last: Curve) -> float:
+    """Largest distance between two centrelines at the same fractions of
+    their lengths, px."""
+    u = np.linspace(0.0, 1.0, 65)
+
+    def points(c: Curve) -> np.ndarray:
+        basis = basis_of(c)
+        z = evaluate(c, basis).z
+        return np.interp(u, basis.u, z.real) + 1j * np.interp(u, basis.u, z.imag)
+
+    return float(np.abs(points(curve) - points(last)).max())
 
 
 def _reaches_crop_edge(curve: Curve, hw: float, box, shape) -> bool:

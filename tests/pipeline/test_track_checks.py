@@ -3,6 +3,7 @@
 import cv2
 import numpy as np
 
+from pipeline import track
 from pipeline.render import Renderer, default_scene, truth_tables
 from pipeline.track import MAX_LENGTH_STEP, RESTART_AFTER, track_frames
 
@@ -73,3 +74,26 @@ def test_a_restart_keeps_the_base_found_before():
     assert results[0].base_source != again.base_source
     assert abs(again.curve.base - results[0].curve.base) < 0.5
     assert abs(np.degrees(again.bend_angle_rad) - truth["bend_angle_deg"][k]) < 2.0
+
+
+def test_the_frame_after_a_start_skips_the_fresh_detection_when_the_tube_stayed(monkeypatch):
+    """A fresh detection on the frame after a start guards against a fast bend
+    (the last shape too far off for Gauss–Newton); a tube that stayed where it
+    was does not need one (it costs as much as ten fast frames)."""
+    frames, truth, scale = _frames()
+    detections = []
+    detect = track.detect
+
+    def counted(*args, **kwargs):
+        detections.append(1)
+        return detect(*args, **kwargs)
+
+    monkeypatch.setattr(track, "detect", counted)
+    still = list(track_frames([frames[0], frames[0], frames[0]]))
+    assert [r.stage for r in still] == ["init", "fast", "fast"]
+    assert len(detections) == 1  # the start's own
+    assert abs(still[1].curve.coef[-1] - still[0].curve.coef[-1]) < np.radians(0.5)
+    # a tube that moved on the frame after the start is found afresh too
+    detections.clear()
+    moved = list(track_frames([frames[0], frames[4]]))
+    assert len(detections) == 2 and moved[1].ok
