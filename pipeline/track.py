@@ -276,7 +276,7 @@ def _score(r: Refined) -> float:
 def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
                  first_detection=None, progress: Callable[[int], None] | None = None,
                  settings: TrackSettings | None = None,
-                 joints: tuple[float, ...] = ()) -> Iterator[FrameTrack]:
+                 joints: tuple[float, ...] | None = None) -> Iterator[FrameTrack]:
     """Track the tube through ``frames`` (2-D arrays, any of uint8/uint16/float).
 
     Parameters
@@ -297,7 +297,9 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
     joints : tuple of float, optional
         The tube's section joints, as fractions of its length from the base
         (e.g. from the sample's sections), where the curvature may step; the
-        centreline's spline gets a triple knot at each.
+        centreline's spline gets a triple knot at each. ``()`` for a tube of
+        one section; None (default) when not known: they are then looked for
+        in the frames.
 
     Yields
     ------
@@ -309,9 +311,9 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
     history: list[Curve] = []
     lost_run = 0
     held_base = base_hint
-    joints = given = tuple(float(j) for j in joints)
     # the joints are looked for in the frames only when they were not given
-    search_from = np.inf if given else np.radians(JOINT_CHECK_DEG)
+    search_from = np.radians(JOINT_CHECK_DEG) if joints is None else np.inf
+    joints = tuple(float(j) for j in joints or ())
     for index, frame in enumerate(frames):
         det = first_detection if index == 0 else None
         search = bool(history) and abs(history[-1].coef[-1]) >= search_from

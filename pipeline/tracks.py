@@ -186,7 +186,9 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
     base_hint = _parse_base(base)
     settings = settings or TrackSettings()
     # the sample's section joints, where the tube's curvature steps
-    joints = () if sample is None else tuple(float(f) for f in np.cumsum(sample.fractions)[:-1])
+    # (none for a single section; looked for in the frames when no sample is given)
+    joints = (None if sample is None
+              else tuple(float(f) for f in np.cumsum(sample.fractions)[:-1]))
     out_dir = Path(out_dir)
     start = time.perf_counter()
     with open_frames(source) as reader:
@@ -218,7 +220,7 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
     lines = centrelines_table(results, scale)
     stages = Counter(r.stage for r in results if r.stage)
     notes = _notes(results, stages, base_hint is not None, rate)
-    notes.append(_joints_note(results, sample if joints else None))
+    notes.append(_joints_note(results, sample))
     if motion_note:
         notes.append(motion_note)
     base_source = "given (--base)" if base_hint else next(
@@ -300,6 +302,9 @@ def _joints_note(results, sample) -> str:
     last = good[-1].curve.joints if good else ()
     where = ", ".join(f"{j:.3f}" for j in last)
     if sample is not None:
+        if not last:
+            return (f"section joints: none (sample {sample.name} is a single section: "
+                    "not looked for)")
         return f"section joints from sample {sample.name}'s sections at u = {where} of the length"
     if last:
         first = next(r.frame for r in good if r.curve.joints)

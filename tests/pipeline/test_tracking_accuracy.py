@@ -254,6 +254,27 @@ def test_the_samples_joints_are_used_when_it_is_given(tmp_path):
     assert first["joints"] == pytest.approx([0.6, 0.9])
 
 
+def test_a_single_section_sample_is_not_searched_for_joints(tmp_path, monkeypatch):
+    """--sample of one section says there are no joints: the frames are not
+    searched for kinks, and the run says so (it once told the user to give
+    --sample, which had been given)."""
+    from pipeline import track
+
+    searched = []
+    monkeypatch.setattr(track, "find_joints", lambda *a, **k: searched.append(1) or ())
+    scene = default_scene(8, seed=3, width=480, height=360, n_frames=8)
+    scene_dir = render_scene(scene, tmp_path / "scene")
+    track_video(scene_dir / json.loads((scene_dir / S.SCENE_FILE).read_text())["frames_file"],
+                tmp_path / "tracked", sample="8")
+    errors, acc = score_folder(scene_dir, tmp_path / "tracked")
+    truth = pd.read_csv(scene_dir / S.TRUTH_TRACKS_FILE)
+    assert acc.frames_lost == 0 and acc.angle_max <= ANGLE_MAX_DEG
+    assert truth[S.BEND].abs().max() > 60  # bent far enough that the frames would be searched
+    assert not searched
+    notes = json.loads((tmp_path / "tracked" / S.RUN_FILE).read_text())["left_out_and_why"]
+    assert any("single section" in n and "not looked for" in n for n in notes), notes
+
+
 def test_a_faint_pipette_short_of_the_border_is_not_taken_for_tube(tmp_path):
     """A fluorescent scene whose pipette glows faintly and fades before the
     border: the skeleton ran 72 px into it, and the base search did not reach
