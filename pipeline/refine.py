@@ -293,6 +293,27 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
     return Refined(curve, u, width, edges.valid, rms, tip_found, it, strength, ~near, mids)
 
 
+def widths_at(image: np.ndarray, curve: Curve, look: TubeLook, u: np.ndarray, *,
+              width_tol: float = 0.3) -> np.ndarray:
+    """The tube's outer width measured across ``curve`` at fractions ``u`` of
+    its length (any spacing, e.g. 1 px apart about a section joint), px; NaN
+    where no edge pair of a plausible width is found."""
+    u = np.asarray(u, dtype=float)
+    basis = basis_of(curve)
+    smp = evaluate(curve, basis)
+    z = np.interp(u, basis.u, smp.z.real) + 1j * np.interp(u, basis.u, smp.z.imag)
+    normal = 1j * np.exp(1j * np.interp(u, basis.u, smp.phi))
+    hw = look.mean_half_width
+    window = 0.3 * hw
+    step = float(np.clip(hw / 24.0, 0.25, 1.0))
+    half = hw * (1 + width_tol) + window + 3.0
+    offsets = np.arange(-np.ceil(half / step), np.ceil(half / step) + 1) * step
+    edges = edge_pairs(sample_lines(image, z, normal, offsets), step, look.half_width_at(u),
+                       polarity=look.polarity, window=window, width_tol=width_tol,
+                       min_strength=0.25 * look.strength)
+    return np.where(edges.valid, edges.width, np.nan)
+
+
 def _tip_offset(image, smp, shift, look: TubeLook, window: float, step: float, *,
                 nearest: bool = False, tip_window: float | None = None):
     """Offset of the tube's end from the curve's end along the tip tangent, px."""

@@ -17,8 +17,11 @@ Per frame, only the work the frame needs (cheapest first):
    (:mod:`pipeline.segment`) keeping the known base, and refine.
 
 Section joints (where the walls change, so the curvature steps) are given by
-the sample, or looked for each time the bend has grown by a quarter
-(:mod:`pipeline.joints`): a joint found gets a triple knot in the spline.
+the sample, or found in the frames (:mod:`pipeline.joints`): as steps in the
+tube's outer width when the tracker starts, and as kinks in its shape each
+time the bend has grown by a quarter. A joint gets a triple knot in the
+spline, and once the joints are known the spline between them is coarser
+(:attr:`TrackSettings.jointed_widths_per_coef`).
 
 A frame that none of these can measure keeps NaN measurements and a status
 saying why; tracking goes on with the last good shape as the prediction.
@@ -39,8 +42,8 @@ from .centreline import (
     n_coef_for,
     tip_point,
 )
-from .joints import find_joints, rewritten, same_joints
-from .refine import Refined, TubeLook, locate_base, refine, self_contact
+from .joints import find_joints, place_steps, rewritten, same_joints, step_windows, width_steps
+from .refine import Refined, TubeLook, locate_base, refine, self_contact, widths_at
 from .segment import detect
 
 #: Profiles that must hold a valid edge pair for a fit to be accepted.
@@ -82,19 +85,25 @@ class TrackSettings:
         coefficient per this many widths, 8 … 48 coefficients; set when the
         tracker starts): wider saves little time and blurs curvature steps at the
         section joints; > 0.
+    jointed_widths_per_coef : float
+        The same once the section joints are known (given, or found in the
+        frames): the curvature steps then have knots of their own, and a
+        coarser spline follows the noise less (the tip angle is the least
+        constrained part of the curve); > 0.
     """
 
     rounds: int = 3
     first_rounds: int = 20
     tol_px: float = 0.02
     widths_per_coef: float = 0.75
+    jointed_widths_per_coef: float = 1.5
 
     def __post_init__(self):
         for name in ("rounds", "first_rounds"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
                 raise ValueError(f"TrackSettings.{name} must be an integer >= 1, got {value!r}")
-        for name in ("tol_px", "widths_per_coef"):
+        for name in ("tol_px", "widths_per_coef", "jointed_widths_per_coef"):
             value = getattr(self, name)
             if (isinstance(value, bool) or not isinstance(value, (int, float, np.floating))
                     or not np.isfinite(value) or value <= 0):
@@ -172,12 +181,17 @@ def _learn_widths(refined: Refined, n_bins: int, fallback: float) -> np.ndarray:
 
 
 def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=None,
-               settings: TrackSettings | None = None, joints: tuple[float, ...] = ()):
+               settings: TrackSettings | None = None,
+               joints: tuple[float, ...] | None = None):
     """Find the tube from scratch and learn its look.
 
     ``settings`` (default :class:`TrackSettings`) sets the spline's size and
     the refinements' convergence tolerance; ``joints`` are the tube's section
-    joints, as fractions of its length, where its curvature may step.
+    joints, as fractions of its length, where its curvature may step (None:
+    not known; ``()``: a single section). The tube is found with the fine
+    spline of ``settings.widths_per_coef`` (it follows the skeleton's hooks
+    and spurs until the ends are found); with the joints known, it is then
+    rewritten with the coarser ``settings.jointed_widths_per_coef``.
 
     Returns
     -------
@@ -192,10 +206,8 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
         return None
     hw = det.half_width
     length = float(np.abs(np.diff(det.path)).sum())
-    # a joint's triple knot costs two coefficients: the other knots keep their spacing
-    n_coef = (n_coef_for(length, 2 * hw, widths_per_coef=settings.widths_per_coef)
-              + 2 * len(joints))
-    curve = fit_to_polyline(det.path, det.base_angle, n_coef=n_coef, joints=joints)
+    n_coef = spline_size(length, hw, joints or (), settings, known=False)
+    curve = fit_to_polyline(det.path, det.base_angle, n_coef=n_coef, joints=joints or ())
     best = None
     for polarity in (-1, 1):
         look = TubeLook(polarity, np.full(9, hw), 0.0)
@@ -229,7 +241,32 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
         r = replace(r, curve=locate_base(image, r.curve, look, reach=reach))
     r = refine(image, r.curve, look, iterations=6, free_base=True, smoothing=0.1, tol_px=tol)
     r = refine(image, r.curve, look, iterations=4, tol_px=tol)
+    if joints is None:
+        # not given: the sections most often differ in their outer width, and a
+        # step in the measured width is a joint, seen already on a straight tube
+        hw, length = look.mean_half_width, r.curve.length
+        coarse = width_steps(r.u, r.width, hw, length)
+        if coarse:
+            # placed to a fraction of a pixel by widths measured densely about each
+            u = step_windows(coarse, hw, length, spacing_px=0.25)
+            joints = place_steps(u, widths_at(image, r.curve, look, u), coarse, hw, length)
+    if joints is not None:
+        n_coef = spline_size(r.curve.length, look.mean_half_width, joints, settings, known=True)
+        if (n_coef, tuple(joints)) != (r.curve.coef.size, r.curve.joints):
+            # the base tangent again, as above, on the steadier spline
+            r = refine(image, rewritten(r.curve, joints, n_coef), look, iterations=6,
+                       free_base=True, smoothing=0.1, tol_px=tol)
+            r = refine(image, r.curve, look, iterations=4, tol_px=tol)
     return r, look, det.base_source
+
+
+def spline_size(length_px: float, half_width_px: float, joints: tuple[float, ...],
+                settings: TrackSettings, *, known: bool) -> int:
+    """Coefficients of a centreline of this length and width with these joints:
+    the spacing of ``settings`` for joints ``known`` or not, and two more
+    per joint (its triple knot; the other knots keep their spacing)."""
+    per = settings.jointed_widths_per_coef if known else settings.widths_per_coef
+    return n_coef_for(length_px, 2 * half_width_px, widths_per_coef=per) + 2 * len(joints)
 
 
 def _leading_gap(r: Refined, run: int = 3) -> float:
@@ -311,27 +348,33 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
     history: list[Curve] = []
     lost_run = 0
     held_base = base_hint
-    # the joints are looked for in the frames only when they were not given
+    # the joints are looked for in the frames only when they were not given;
+    # ``known`` is None while they are not known
     search_from = np.radians(JOINT_CHECK_DEG) if joints is None else np.inf
-    joints = tuple(float(j) for j in joints or ())
+    known = None if joints is None else tuple(float(j) for j in joints)
+    given = known is not None
+    seen: tuple[float, ...] = ()  # joints seen as width steps: kept by the kink search
     for index, frame in enumerate(frames):
         det = first_detection if index == 0 else None
         search = bool(history) and abs(history[-1].coef[-1]) >= search_from
         result = _track_one(index, frame, look, history, held_base, base_end, det, settings,
-                            joints, search)
+                            known, seen if search else None)
         if isinstance(result, tuple):  # (re)initialised: a new look, a new history
             result, look = result
             history = []
+            if not given and result.ok and not seen:
+                seen = result.curve.joints
             if base_hint is None and held_base is not None and result.base_source:
                 # the restart was given the base found before, not the user's --base
                 result = replace(result, base_source="kept from an earlier frame")
         if search and result.ok:
             search_from = JOINT_CHECK_GROWTH * abs(result.curve.coef[-1])
-        if result.ok and result.curve.joints != joints:
+        if result.ok and result.curve.joints != (known or ()):
             # joints found on this frame: the shapes that predict the next frames
             # are rewritten with them (their coefficients are extrapolated)
-            joints = result.curve.joints
-            history = [rewritten(h, joints) for h in history]
+            known = result.curve.joints if result.curve.joints or given else None
+            history = [rewritten(h, result.curve.joints, result.curve.coef.size)
+                       for h in history]
         if result.ok:
             history = (history + [result.curve])[-2:]
             lost_run = 0
@@ -349,13 +392,13 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
 
 
 def _track_one(index, frame, look, history, base_hint, base_end, detection, settings,
-               joints, search_joints):
+               known, search_keep):
     if frame.ndim != 2:
         raise ValueError(f"frame {index} is not a greyscale 2-D array: shape {frame.shape}")
     if look is None or not history:
         image = as_float(frame)
         init = initialise(image, base_hint=base_hint, base_end=base_end, detection=detection,
-                          settings=settings, joints=joints)
+                          settings=settings, joints=known)
         if init is None:
             return FrameTrack(index, "no tube found", None, "")
         r, look, source = init
@@ -407,7 +450,7 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
         stage = "wide"
         work = 1.0
         if not accept(r) and not crossing:
-            cand = _redetect(image, history[-1], look, tol)
+            cand = _redetect(image, history[-1], look, settings)
             if cand is not None and (accept(cand) or (not accept(r)
                                                       and _score(cand) > _score(r))):
                 r = cand
@@ -419,7 +462,7 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
         # better fit kept; once per start. Not needed when the fit found the
         # tube's edges all along within a half-width of the last shape: the
         # tube is there (a detection costs as much as ten fast frames)
-        cand = _redetect(image, history[-1], look, tol)
+        cand = _redetect(image, history[-1], look, settings)
         if cand is not None and accept(cand) and _score(cand) > _score(r):
             r, stage, work = cand, "redetect", 1.0
     if not accept(r):
@@ -429,14 +472,18 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
                   else "lost: tip not found" if not r.tip_found
                   else "lost: edges do not fit a smooth tube")
         return FrameTrack(index, reason, None, stage, r.residual_px, r.valid_fraction, work)
-    if search_joints:
+    if search_keep is not None:
         # where the tube kinks away from the fit, a section joint: refit with a
         # triple knot there (kept only if that fit passes the same checks)
         # (afresh on every look: the more the tube bends, the clearer its kinks)
-        found = find_joints(r.curve, r.u, r.midpoints, hw)
-        if not same_joints(found, r.curve.joints, 0.2 * hw / r.curve.length):
+        # (the test is calibrated on the fine spline of unknown joints)
+        length = r.curve.length
+        fine = rewritten(r.curve, (), spline_size(length, hw, (), settings, known=False))
+        found = find_joints(fine, r.u, r.midpoints, hw, keep=search_keep)
+        if not same_joints(found, r.curve.joints, 0.2 * hw / length):
             image = as_float(frame) if image is None else image
-            cand = refine(image, rewritten(r.curve, found), look, iterations=10,
+            n_coef = spline_size(length, hw, found, settings, known=bool(found))
+            cand = refine(image, rewritten(r.curve, found, n_coef), look, iterations=10,
                           avoid_contact=crossing, tol_px=tol)
             if accept(cand):
                 r = cand
@@ -448,20 +495,30 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
     return FrameTrack(index, "ok", r.curve, stage, r.residual_px, r.valid_fraction, work)
 
 
-def _redetect(image, prev: Curve, look: TubeLook, tol: float) -> Refined | None:
-    """Find the tube afresh from the held base and refine it; None if not found."""
+def _redetect(image, prev: Curve, look: TubeLook, settings: TrackSettings) -> Refined | None:
+    """Find the tube afresh from the held base and refine it; None if not found.
+
+    As on a start, the skeleton is first followed by the fine spline without
+    joints (a coarse one cannot follow its hooks and spurs, and lands far
+    off), then rewritten as ``prev`` is (its joints and spacing)."""
     det = detect(image, base_hint=_base_col_row(prev))
     if det is None:
         return None
-    start = fit_to_polyline(det.path, prev.base_angle, n_coef=prev.coef.size,
-                            joints=prev.joints)
+    tol = settings.tol_px
+    hw = look.mean_half_width
+    length = float(np.abs(np.diff(det.path)).sum())
+    n_fine = spline_size(length, hw, (), settings, known=False)
+    start = fit_to_polyline(det.path, prev.base_angle, n_coef=n_fine)
     start = replace(start, base=prev.base)
     r = refine(image, start, look, iterations=10, tol_px=tol)
     if not r.tip_found:
         # a skeleton's length is rough (its end stops short of a rounded tip,
         # or runs into a spur): look for the end farther out, as on a start
-        reach = max(2.0 * look.mean_half_width, 0.1 * r.curve.length)
+        reach = max(2.0 * hw, 0.1 * r.curve.length)
         r = refine(image, r.curve, look, iterations=10, tol_px=tol, tip_window=reach)
+    if (r.curve.coef.size, r.curve.joints) != (prev.coef.size, prev.joints):
+        r = refine(image, rewritten(r.curve, prev.joints, prev.coef.size), look,
+                   iterations=6, tol_px=tol)
     return r
 
 

@@ -308,11 +308,11 @@ def _joints_note(results, sample) -> str:
         return f"section joints from sample {sample.name}'s sections at u = {where} of the length"
     if last:
         first = next(r.frame for r in good if r.curve.joints)
-        return (f"section joints found where the shape kinks, at u = {where} of the length "
-                f"(first on frame {first}; looked for on frames bent >= "
+        return (f"section joints found in the frames at u = {where} of the length (first on "
+                f"frame {first}: steps in the tube's width, or kinks in its shape once bent >= "
                 f"{JOINT_CHECK_DEG:g} deg)")
-    return (f"section joints: none found (looked for on frames bent >= {JOINT_CHECK_DEG:g} deg:"
-            " the curvature did not step measurably); give --sample to use its sections")
+    return ("section joints: none found (the tube's width did not step, nor its curvature on "
+            f"frames bent >= {JOINT_CHECK_DEG:g} deg); give --sample to use its sections")
 
 
 def _run_record(run: TrackRun, source, rate, results, settings: TrackSettings) -> dict:

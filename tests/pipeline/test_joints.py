@@ -1,10 +1,17 @@
-"""Finding section joints from measured edge midpoints (no images needed)."""
+"""Finding section joints from measured edge midpoints and widths (no images needed)."""
 
 import numpy as np
 import pytest
 
 from pipeline.centreline import basis_of, evaluate, fit_to_polyline
-from pipeline.joints import find_joints, rewritten, same_joints
+from pipeline.joints import (
+    find_joints,
+    place_steps,
+    rewritten,
+    same_joints,
+    step_windows,
+    width_steps,
+)
 from tests.pipeline.test_centreline import _two_arcs
 
 HALF_WIDTH = 10.0
@@ -75,3 +82,61 @@ def test_same_joints_compares_within_a_tolerance():
     assert same_joints((0.5, 0.9), (0.51, 0.89), 0.02)
     assert not same_joints((0.5,), (0.5, 0.9), 0.02)
     assert not same_joints((0.5,), (0.6,), 0.02)
+
+
+def test_rewriting_to_another_spacing_keeps_the_shape():
+    z, _ = _two_arcs(split=0.7)
+    curve = fit_to_polyline(z, 0.0, n_coef=24, joints=(0.7,))
+    coarse = rewritten(curve, (0.7,), 12)
+    assert coarse.coef.size == 12 and coarse.joints == (0.7,)
+    assert (coarse.length, coarse.base, coarse.base_angle) == (curve.length, curve.base,
+                                                               curve.base_angle)
+    # the two arcs are in the coarse jointed spline's space: nothing is lost
+    za = evaluate(curve, basis_of(curve)).z
+    zb = evaluate(coarse, basis_of(coarse)).z
+    assert np.abs(za - zb).max() < 0.05
+
+
+def _widths(u, steps, levels, noise, seed):
+    """A tube's outer width along u, stepping at ``steps`` between ``levels``, px."""
+    rng = np.random.default_rng(seed)
+    w = np.full(u.size, levels[0], float)
+    for at, level in zip(steps, levels[1:], strict=True):
+        w[u >= at] = level
+    return w + rng.normal(0, noise, u.size)
+
+
+LENGTH, HW = 800.0, 28.0
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_width_steps_are_found_and_placed_to_a_fraction_of_a_pixel(seed):
+    true = (0.4317, 0.6702, 0.9004)
+    levels = (56.0, 59.0, 62.5, 57.0)  # 3-10 % steps, like sample 1's
+    # coarse: the tracker's profiles, a third of a half-width apart
+    u = np.linspace(0.01, 0.997, int(LENGTH / (HW / 3)))
+    coarse = width_steps(u, _widths(u, true, levels, 0.3, seed), HW, LENGTH)
+    assert len(coarse) == 3
+    # the candidates are a fifth of a width apart: up to 6 px off
+    assert np.max(np.abs(np.array(coarse) - true)) * LENGTH < 0.6 * HW
+    dense = step_windows(coarse, HW, LENGTH, spacing_px=0.25)
+    placed = place_steps(dense, _widths(dense, true, levels, 0.3, seed + 10), coarse, HW,
+                         LENGTH)
+    assert np.max(np.abs(np.array(placed) - true)) * LENGTH < 0.5  # px
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_tube_of_even_width_shows_no_width_step(seed):
+    u = np.linspace(0.01, 0.997, 100)
+    assert width_steps(u, _widths(u, (), (56.0,), 0.5, seed), HW, LENGTH) == ()
+    # nor does a step below the smallest relative one (1 %), however clean
+    assert width_steps(u, _widths(u, (0.5,), (56.0, 56.5), 0.01, seed), HW, LENGTH) == ()
+
+
+def test_width_steps_skip_profiles_without_a_width():
+    u = np.linspace(0.01, 0.997, 100)
+    w = _widths(u, (0.5,), (56.0, 62.0), 0.3, 0)
+    w[::4] = np.nan
+    (found,) = width_steps(u, w, HW, LENGTH)
+    assert abs(found - 0.5) * LENGTH < 0.6 * HW
+    assert width_steps(u[:10], w[:10], HW, LENGTH) == ()  # too few to tell

@@ -2,7 +2,14 @@ import numpy as np
 import pytest
 
 from pipeline.centreline import Curve, evaluate, fit_to_polyline, make_basis, n_grid_for
-from pipeline.refine import TubeLook, contact_mask, locate_base, refine, self_contact
+from pipeline.refine import (
+    TubeLook,
+    contact_mask,
+    locate_base,
+    refine,
+    self_contact,
+    widths_at,
+)
 from tests.pipeline.synthetic import arc_axis, tube_image
 
 SHAPE = (480, 640)
@@ -107,3 +114,18 @@ def test_a_tip_ending_against_the_body_keeps_its_side_profiles():
     beside = contact_mask(z, last, reach=reach, gap=gap, normals=np.full(last.size, 1j),
                           half_width=hw)
     assert beside[(z[last].real > 10) & (z[last].real < 190)].all()
+
+
+@pytest.mark.parametrize("kappa", [0.0, 1 / 250])
+def test_widths_at_measures_the_outer_width_anywhere_along_the_tube(kappa):
+    truth = _truth(kappa)
+    img = tube_image(SHAPE, _base(kappa), 0.0, 450.0, kappa, 16.0, noise=0.01)
+    look = TubeLook(-1, np.full(5, 16.0), 0.05)
+    u = np.linspace(0.1, 0.9, 333)  # any spacing, here under 1.1 px
+    width = widths_at(img, truth, look, u)
+    assert np.isfinite(width).all()
+    assert np.abs(np.median(width) - 32.0) < 0.2 and np.std(width) < 0.3
+    if kappa == 0:
+        # off the tube (100 px beside it, on blank background) no width is found
+        away = Curve(truth.base + 100j, truth.base_angle, truth.length, truth.coef)
+        assert np.isnan(widths_at(img, away, look, u)).all()

@@ -27,6 +27,7 @@ def _frames():
     ("rounds", 0), ("rounds", 2.5), ("rounds", True), ("rounds", "3"),
     ("first_rounds", -1), ("tol_px", 0.0), ("tol_px", -0.1), ("tol_px", float("nan")),
     ("widths_per_coef", float("inf")), ("widths_per_coef", "0.75"),
+    ("jointed_widths_per_coef", 0.0), ("jointed_widths_per_coef", float("nan")),
 ])
 def test_bad_settings_are_refused_naming_the_field(field, value):
     with pytest.raises(ValueError, match=rf"TrackSettings\.{field} must be"):
@@ -49,8 +50,17 @@ def test_explicit_default_settings_track_exactly_as_no_settings():
 
 def test_settings_reach_the_tracker_and_run_json(tmp_path):
     frames = _frames()
-    fine = next(track_frames(frames[:1]))
-    coarse = next(track_frames(frames[:1], settings=TrackSettings(widths_per_coef=3.0)))
+    # sample 3's joint is seen (its width steps): the jointed spacing applies
+    jointed = next(track_frames(frames[:1]))
+    assert len(jointed.curve.joints) == 1
+    coarse = next(track_frames(frames[:1], settings=TrackSettings(jointed_widths_per_coef=3.0)))
+    assert coarse.curve.coef.size < jointed.curve.coef.size
+    # a single section, its joints not known: the fine spacing applies
+    single = Renderer(default_scene(8, n_frames=1, seed=3, width=320, height=240,
+                                    look=LOOK)).frame(0)
+    fine = next(track_frames([single]))
+    assert fine.curve.joints == ()
+    coarse = next(track_frames([single], settings=TrackSettings(widths_per_coef=3.0)))
     assert coarse.curve.coef.size < fine.curve.coef.size
     folder = render_scene(_scene(), tmp_path / "scene", fmt="png")
     scale = json.loads((folder / "scene.json").read_text())["layout"]["um_per_px"]
@@ -58,4 +68,4 @@ def test_settings_reach_the_tracker_and_run_json(tmp_path):
                 settings=TrackSettings(rounds=1, tol_px=0.1))
     run = json.loads((tmp_path / "out" / "run.json").read_text())
     assert run["tracker_settings"] == {"rounds": 1, "first_rounds": 20, "tol_px": 0.1,
-                                       "widths_per_coef": 0.75}
+                                       "widths_per_coef": 0.75, "jointed_widths_per_coef": 1.5}
