@@ -182,8 +182,10 @@ def settings_section(sweep: pd.DataFrame, speed: pd.DataFrame) -> list[str]:
         "turn over itself) tracked under several `pipeline.track.TrackSettings`: the "
         "fast path's Gauss–Newton rounds (and the rounds on the frame after a start), "
         "the convergence tolerance `tol_px`, and the spline's spacing in tube widths per "
-        "coefficient. Each cell: p95 |bend-angle error| · frames/s after the first frame "
-        "(decoding included; each frame's best of 3 runs).", "",
+        "coefficient while the section joints are not known (and, in brackets, once they "
+        "are: given by a sample, or found in the frames). Each cell: p95 |bend-angle "
+        "error| · frames/s after the first frame (decoding included; each frame's best "
+        "of 3 runs).", "",
         "| setting | rounds (after a start) | tol (px) | widths/coef | "
         + " | ".join(scenes) + " |",
         "|---|---|---|---|" + "---|" * len(scenes),
@@ -198,7 +200,8 @@ def settings_section(sweep: pd.DataFrame, speed: pd.DataFrame) -> list[str]:
             cells.append(f"{_fmt(r.angle_p95_deg)}° · {r.frames_per_s:.0f}{lost}")
         label = f"**{name}**" if first.is_default else name
         lines.append(f"| {label} | {int(first.rounds)} ({int(first.first_rounds)}) "
-                     f"| {first.tol_px:g} | {first.widths_per_coef:g} | "
+                     f"| {first.tol_px:g} | {first.widths_per_coef:g} "
+                     f"({first.jointed_widths_per_coef:g}) | "
                      + " | ".join(cells) + " |")
     default = sweep[sweep["is_default"]].set_index("scene")
 
@@ -211,6 +214,9 @@ def settings_section(sweep: pd.DataFrame, speed: pd.DataFrame) -> list[str]:
     fast_ratio, fast_p95 = vs_default(fewest)
     coarse = sweep.loc[sweep["widths_per_coef"].idxmax(), "setting"]
     coarse_ratio, coarse_p95 = vs_default(coarse)
+    coarse_cells = ", ".join(
+        f"{sc} {p:.2f}° against {default.loc[sc, 'angle_p95_deg']:.2f}°"
+        for sc, p in sweep[sweep["setting"] == coarse].set_index("scene")["angle_p95_deg"].items())
     # how far the p95 moves with the rounds and the tolerance alone (same spline)
     fine = sweep[(sweep["widths_per_coef"] == default["widths_per_coef"].iloc[0])
                  & ~sweep["is_default"]]
@@ -228,7 +234,8 @@ def settings_section(sweep: pd.DataFrame, speed: pd.DataFrame) -> list[str]:
         f"{fast_ratio:.1f}× the default's frames/s (worst p95 over the scenes "
         f"{fast_p95:.2f}°, against {default['angle_p95_deg'].max():.2f}°). The default — "
         f"**{int(d.rounds)} rounds ({int(d.first_rounds)} after a start), tol "
-        f"{d.tol_px:g} px, one coefficient per {d.widths_per_coef:g} widths** — stays, "
+        f"{d.tol_px:g} px, one coefficient per {d.widths_per_coef:g} widths "
+        f"({d.jointed_widths_per_coef:g} once the joints are known)** — stays, "
         "and every other figure here uses it: "
         + (f"{fewest} would be about as accurate here and faster, but "
            if fast_p95 <= default["angle_p95_deg"].max() + 0.5 else "")
@@ -236,8 +243,12 @@ def settings_section(sweep: pd.DataFrame, speed: pd.DataFrame) -> list[str]:
         "(a sudden pressure step), which these smoothly inflating scenes do not test"
         + (f"; the default still tracks at {rate:.0f} frames/s on 1024×768 video (above). "
            if rate >= 100 else ". ") +
-        f"The {coarse} ({sweep['widths_per_coef'].max():g} widths per coefficient) runs at "
-        f"{coarse_ratio:.1f}× the default's frames/s but blurs the curvature steps at the "
-        f"joints of a tube whose sections differ (worst p95 {coarse_p95:.1f}°, on sample "
-        "#1), which is why the spline keeps its finer spacing.")]
+        f"The {coarse} ({sweep['widths_per_coef'].max():g} widths per coefficient while "
+        f"the joints are not known) runs at {coarse_ratio:.1f}× the default's frames/s, "
+        f"worst p95 {coarse_p95:.2f}° (per scene: {coarse_cells}). It differs from the "
+        "default only where no joint is found (a joint found switches to the jointed "
+        "spacing either way). The finer spacing stays for that case: it is the spline "
+        "the tube is found with at a start, where a coarse one cannot follow the "
+        "skeleton's hooks (sample #1 came out 31 % short), and it must follow the "
+        "curvature steps of a tube whose joints are not found.")]
     return lines
