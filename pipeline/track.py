@@ -42,7 +42,16 @@ from .centreline import (
     n_coef_for,
     tip_point,
 )
-from .joints import find_joints, place_steps, rewritten, same_joints, step_windows, width_steps
+from .joints import (
+    MAX_SPACING_F,
+    find_joints,
+    place_steps,
+    rewritten,
+    same_joints,
+    spacing_f,
+    step_windows,
+    width_steps,
+)
 from .refine import Refined, TubeLook, locate_base, refine, self_contact, widths_at
 from .segment import detect
 
@@ -370,9 +379,12 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
         if search and result.ok:
             search_from = JOINT_CHECK_GROWTH * abs(result.curve.coef[-1])
         if result.ok and result.curve.joints != (known or ()):
-            # joints found on this frame: the shapes that predict the next frames
-            # are rewritten with them (their coefficients are extrapolated)
             known = result.curve.joints if result.curve.joints or given else None
+        if result.ok and history and ((result.curve.joints, result.curve.coef.size)
+                                      != (history[-1].joints, history[-1].coef.size)):
+            # joints found (or the spacing changed) on this frame: the shapes that
+            # predict the next frames are rewritten alike (their coefficients are
+            # extrapolated)
             history = [rewritten(h, result.curve.joints, result.curve.coef.size)
                        for h in history]
         if result.ok:
@@ -482,9 +494,24 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
         found = find_joints(fine, r.u, r.midpoints, hw, keep=search_keep)
         if not same_joints(found, r.curve.joints, 0.2 * hw / length):
             image = as_float(frame) if image is None else image
-            n_coef = spline_size(length, hw, found, settings, known=bool(found))
+            # the coarser spacing only while every joint is one seen as a width
+            # step: a kink found means the width steps missed a joint, and others
+            # may still be missed, whose curvature steps a coarse spline cannot
+            # follow (sample 5 without its width steps: 30° off at 195°)
+            complete = bool(found) and len(found) == len(search_keep)
+            n_coef = spline_size(length, hw, found, settings, known=complete)
             cand = refine(image, rewritten(r.curve, found, n_coef), look, iterations=10,
                           avoid_contact=crossing, tol_px=tol)
+            if accept(cand):
+                r = cand
+        # a coarse spline that misses a curvature step (a joint whose width does
+        # not step) shows as a finer spline fitting the midpoints better
+        fine_n = spline_size(r.curve.length, hw, r.curve.joints, settings, known=False)
+        if (r.curve.coef.size < fine_n
+                and spacing_f(r.curve, fine_n, r.u, r.midpoints) >= MAX_SPACING_F):
+            image = as_float(frame) if image is None else image
+            cand = refine(image, rewritten(r.curve, r.curve.joints, fine_n), look,
+                          iterations=10, avoid_contact=crossing, tol_px=tol)
             if accept(cand):
                 r = cand
     # the unwrapped angle must move continuously: a jump of ~a turn is a slip

@@ -9,6 +9,7 @@ from pipeline.joints import (
     place_steps,
     rewritten,
     same_joints,
+    spacing_f,
     step_windows,
     width_steps,
 )
@@ -140,3 +141,15 @@ def test_width_steps_skip_profiles_without_a_width():
     (found,) = width_steps(u, w, HW, LENGTH)
     assert abs(found - 0.5) * LENGTH < 0.6 * HW
     assert width_steps(u[:10], w[:10], HW, LENGTH) == ()  # too few to tell
+
+
+def test_a_coarse_spline_missing_a_joint_is_told_by_the_finer_one():
+    z, _ = _two_arcs(split=0.7)
+    u, pts = _midpoints(z, 0.05, seed=4)
+    # coarse with the joint: the finer spline gains nothing
+    coarse = fit_to_polyline(z, 0.0, n_coef=10, joints=(0.7,))
+    assert spacing_f(coarse, 24, u, pts) < 4.0
+    # coarse without it: the finer spline follows the curvature step much better
+    blind = fit_to_polyline(z, 0.0, n_coef=8)
+    assert spacing_f(blind, 22, u, pts) > 20.0
+    assert spacing_f(blind, 8, u, pts) == 0.0  # no finer spline to compare with

@@ -252,6 +252,21 @@ def test_a_fluorescent_tight_curl_finds_its_joints_by_the_width_steps(tmp_path):
     assert first["joints"] == pytest.approx([0.6, 0.9], abs=0.003)
 
 
+def test_a_joint_whose_width_does_not_step_is_still_followed(tmp_path, monkeypatch):
+    """Sample 5 with its tip joint's width step hidden (as if the walls changed
+    but not the outer width): the spline coarsened for the joints seen cannot
+    follow the hidden curvature step (42° off at 270°) until a finer spline
+    is seen to fit the edges better; then the fine spacing comes back."""
+    from pipeline import track
+
+    steps = track.width_steps
+    monkeypatch.setattr(track, "width_steps", lambda *a, **k: steps(*a, **k)[:-1])
+    errors, acc, tracks, truth = _render_and_track(tmp_path, 5, seed=7, width=640, height=480,
+                                                   n_frames=16)
+    assert acc.frames_lost == 0
+    assert acc.angle_max <= ANGLE_MAX_DEG
+
+
 def test_the_samples_joints_are_used_when_it_is_given(tmp_path):
     """With --sample the joints come from its sections."""
     scene = default_scene(5, seed=7, width=1024, height=768, n_frames=12, look="fluorescent")
