@@ -313,7 +313,7 @@ def _readme(out: Path, track, speed, calib, vs_n, demo, model_md: str,
         f"**{s.track_frames_per_s:.0f} frames/s** ({s.track_command_s:.2f} s), against "
         f"{s.decode_frames_per_s:.0f} frames/s for merely decoding the video: "
         f"**{s.ratio_to_decode:.1f}×** decoding time (target ≥ 100 frames/s, ≤ 3×). One "
-        "core; figures vary by ±30 % on a busy machine. "
+        "core; each the best of 3 runs (figures vary by ±30 % on a busy machine). "
         f"[`{SPEED_FILE}`]({SPEED_FILE})", "",
         *settings_section(sweep, speed), "",
         "## Calibration", "",
