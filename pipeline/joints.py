@@ -93,7 +93,7 @@ def find_joints(curve: Curve, u: np.ndarray, midpoints: np.ndarray, half_width: 
     if u.size < k + 10:
         return keep
     basis = basis_of(smooth)
-    idx = np.clip(np.round(u * (basis.n_grid - 1)).astype(int), 0, basis.n_grid - 1)
+    idx = _grid_index(u, basis)
     smooth = _fit_midpoints(smooth, basis, idx, pts)
     smp = evaluate(smooth, basis)
     normal = smp.normal[idx]
@@ -144,14 +144,24 @@ def _polish(smooth: Curve, idx, pts, keep, found: list[float],
             trial = sorted(joints[:i] + [float(c)] + joints[i + 1:] + list(keep))
             if not 0 < c < 1 or np.any(np.diff([0.0, *trial, 1.0]) < 0.5 * width_u):
                 continue
-            curve = rewritten(smooth, trial)
-            basis = basis_of(curve)
-            curve = _fit_midpoints(curve, basis, idx, pts, iterations=2)
-            smp = evaluate(curve, basis)
-            rss = float(np.sum(np.real(np.conj(smp.normal[idx]) * (pts - smp.z[idx])) ** 2))
+            rss = _midpoint_rss(rewritten(smooth, trial), idx, pts, iterations=2)
             best = min(best, (rss, float(c)))
         joints[i] = best[1]
     return tuple(sorted(joints + list(keep)))
+
+
+def _grid_index(u: np.ndarray, basis) -> np.ndarray:
+    """The grid nodes of ``basis`` nearest the fractions ``u``."""
+    return np.clip(np.round(u * (basis.n_grid - 1)).astype(int), 0, basis.n_grid - 1)
+
+
+def _midpoint_rss(curve: Curve, idx: np.ndarray, pts: np.ndarray, iterations: int = 4) -> float:
+    """Residual sum of squares of the midpoints' normal offsets from ``curve``
+    once fitted to them (:func:`_fit_midpoints`; ``idx`` on ``curve``'s grid)."""
+    basis = basis_of(curve)
+    curve = _fit_midpoints(curve, basis, idx, pts, iterations)
+    smp = evaluate(curve, basis)
+    return float(np.sum(np.real(np.conj(smp.normal[idx]) * (pts - smp.z[idx])) ** 2))
 
 
 def _fit_midpoints(curve: Curve, basis, idx: np.ndarray, pts: np.ndarray,
@@ -318,15 +328,9 @@ def spacing_f(curve: Curve, fine_n_coef: int, u: np.ndarray, midpoints: np.ndarr
     if extra <= 0 or u.size < fine_n_coef + 10:
         return 0.0
 
-    def rss(c: Curve, fit: bool) -> float:
-        basis = basis_of(c)
-        idx = np.clip(np.round(u * (basis.n_grid - 1)).astype(int), 0, basis.n_grid - 1)
-        if fit:
-            c = _fit_midpoints(c, basis, idx, pts)
-        smp = evaluate(c, basis)
-        return float(np.sum(np.real(np.conj(smp.normal[idx]) * (pts - smp.z[idx])) ** 2))
-
-    coarse = rss(curve, True)
-    fine = rss(rewritten(curve, curve.joints, fine_n_coef), True)
+    # both on the same grid (the curve's length sets it)
+    idx = _grid_index(u, basis_of(curve))
+    coarse = _midpoint_rss(curve, idx, pts)
+    fine = _midpoint_rss(rewritten(curve, curve.joints, fine_n_coef), idx, pts)
     dof = u.size - fine_n_coef - 1
     return float((coarse - fine) / extra / max(fine / dof, 1e-300))

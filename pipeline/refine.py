@@ -121,10 +121,15 @@ def _profile_layout(curve: Curve, look: TubeLook, n_grid: int, window: float, wi
     n = max(int((stop - start) * curve.length / spacing), 8)
     u = np.linspace(start, stop, n)
     idx = np.clip(np.round(u * (n_grid - 1)).astype(int), 0, n_grid - 1)
+    return (idx, *_profile_offsets(hw, window, width_tol))
+
+
+def _profile_offsets(hw: float, window: float, width_tol: float):
+    """Sample offsets across the tube (wide enough for both edges of a tube up
+    to ``width_tol`` wider, anywhere within ``window``), and their step, px."""
     step = float(np.clip(hw / 24.0, 0.25, 1.0))
     half = hw * (1 + width_tol) + window + 3.0
-    offsets = np.arange(-np.ceil(half / step), np.ceil(half / step) + 1) * step
-    return idx, offsets, step
+    return np.arange(-np.ceil(half / step), np.ceil(half / step) + 1) * step, step
 
 
 def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0),
@@ -305,9 +310,7 @@ def widths_at(image: np.ndarray, curve: Curve, look: TubeLook, u: np.ndarray, *,
     normal = 1j * np.exp(1j * np.interp(u, basis.u, smp.phi))
     hw = look.mean_half_width
     window = 0.3 * hw
-    step = float(np.clip(hw / 24.0, 0.25, 1.0))
-    half = hw * (1 + width_tol) + window + 3.0
-    offsets = np.arange(-np.ceil(half / step), np.ceil(half / step) + 1) * step
+    offsets, step = _profile_offsets(hw, window, width_tol)
     edges = edge_pairs(sample_lines(image, z, normal, offsets), step, look.half_width_at(u),
                        polarity=look.polarity, window=window, width_tol=width_tol,
                        min_strength=0.25 * look.strength)
