@@ -68,6 +68,10 @@ RESTART_AFTER = 5
 #: has grown by :data:`JOINT_CHECK_GROWTH` (a step shows more the more it bends).
 JOINT_CHECK_DEG = 45.0
 JOINT_CHECK_GROWTH = 1.25
+#: Fractions of the detection mask's width tried as the tube's width on the
+#: first fit (the strongest edge pairs win): the mask of a strong, thin band
+#: spreads over its blurred skirts, to twice the width of a 6 px opaque tube.
+WIDTH_GUESSES = (1.0, 0.6, 0.36)
 
 
 @dataclass(frozen=True)
@@ -219,12 +223,13 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
     curve = fit_to_polyline(det.path, det.base_angle, n_coef=n_coef, joints=joints or ())
     best = None
     for polarity in (-1, 1):
-        look = TubeLook(polarity, np.full(9, hw), 0.0)
-        r = refine(image, curve, look, window=0.6 * hw, iterations=3, width_tol=0.4,
-                   fit_length=False, tol_px=tol, tip_stiffness=0.0)
-        score = r.valid_fraction * r.strength
-        if best is None or score > best[0]:
-            best = (score, polarity, r)
+        for scale in WIDTH_GUESSES:
+            look = TubeLook(polarity, np.full(9, hw * scale), 0.0)
+            r = refine(image, curve, look, window=0.6 * hw, iterations=3, width_tol=0.4,
+                       fit_length=False, tol_px=tol, tip_stiffness=0.0)
+            score = r.valid_fraction * r.strength
+            if best is None or score > best[0]:
+                best = (score, polarity, r)
     _, polarity, r = best
     if r.valid_fraction < 0.3:
         return None

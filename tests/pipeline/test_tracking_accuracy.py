@@ -309,3 +309,20 @@ def test_a_faint_pipette_short_of_the_border_is_not_taken_for_tube(tmp_path):
     assert acc.frames_lost == 0
     assert acc.length_error_max_pct <= LENGTH_ERROR_PCT
     assert acc.base_error_max_px <= 1.0
+
+
+def test_a_thin_dark_tube_is_measured_at_its_own_width(tmp_path):
+    """Sample 8 (355 µm wide) opaque at 57 µm/px is a 6 px dark band. The
+    detection mask of so strong a band spreads over its blurred skirts to
+    twice the tube's width, and the edge pairs then sought (±40 % of that)
+    missed the true pair on every frame: all 16 lost as "edges do not fit".
+    The first fit now also tries narrower widths and keeps the strongest."""
+    errors, acc, tracks, truth = _render_and_track(tmp_path, 8, seed=1016, look="opaque",
+                                                   width=320, height=240, n_frames=8,
+                                                   base_angle_deg=-60.0, mirror=True)
+    lost = errors.loc[errors[S.STATUS] != S.STATUS_OK, [S.FRAME, S.STATUS]]
+    assert acc.frames_lost == 0, lost.to_string(index=False)
+    assert acc.centreline_rms_px <= CENTRELINE_RMS_PX
+    assert acc.length_error_max_pct <= LENGTH_ERROR_PCT
+    assert acc.angle_max <= ANGLE_MAX_DEG
+    _assert_same_sign(tracks, truth)
