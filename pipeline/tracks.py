@@ -256,8 +256,7 @@ def _static_end(reader):
     if det is None or det.base_source != AMBIGUOUS_BASE:
         return None, None, det
     ends = det.path[[0, -1]]
-    motion = end_motion(iter(reader), (-ends[0].imag, ends[0].real),
-                        (-ends[1].imag, ends[1].real), det.half_width)
+    motion = end_motion(iter(reader), np.c_[-det.path.imag, det.path.real], det.half_width)
     if not motion.decided:
         return None, (f"base end ambiguous (no pipette or border seen, and both ends moved "
                       f"alike over {motion.frames} frames): took the end nearer the border; "
