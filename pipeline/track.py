@@ -40,6 +40,7 @@ from .centreline import (
     evaluate,
     fit_to_polyline,
     n_coef_for,
+    resample,
     tip_point,
 )
 from .joints import (
@@ -242,6 +243,8 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
         # tip yet: the skeleton's end may still hook into a spur, which a stiff tip
         # would carry on as a curl and so never find the end
         wide_tip = None if r.tip_found else 2.0 * look.mean_half_width
+        if not r.tip_found:
+            r = replace(r, curve=_cut_to_edges(r, look.mean_half_width))
         r = refine(image, r.curve, look, iterations=8, width_tol=width_tol, free_base=True,
                    smoothing=0.1, tip_window=wide_tip, tol_px=tol, tip_stiffness=0.0)
         look = TubeLook(polarity, _learn_widths(r, 9, look.mean_half_width), r.strength)
@@ -281,6 +284,21 @@ def spline_size(length_px: float, half_width_px: float, joints: tuple[float, ...
     per joint (its triple knot; the other knots keep their spacing)."""
     per = settings.jointed_widths_per_coef if known else settings.widths_per_coef
     return n_coef_for(length_px, 2 * half_width_px, widths_per_coef=per) + 2 * len(joints)
+
+
+def _cut_to_edges(r: Refined, half_width: float, run: int = 3) -> Curve:
+    """The curve cut back to half a width past the last of ``run`` consecutive
+    profiles that found the tube's edges, when it runs on a width or more
+    beyond them: a skeleton that ran on into a dust speck by the tip (16 px
+    too long, and its end then never found on a 320x240 frame)."""
+    gap = _leading_gap(replace(r, u=1.0 - r.u[::-1], valid=r.valid[::-1]), run)
+    if gap < 2.0 * half_width or gap > 0.5 * r.curve.length:
+        return r.curve
+    curve = r.curve
+    s, z = resample(curve)
+    keep = s <= curve.length - gap + half_width
+    return fit_to_polyline(z[keep], curve.base_angle, n_coef=curve.coef.size,
+                           joints=curve.joints)
 
 
 def _leading_gap(r: Refined, run: int = 3) -> float:
