@@ -243,11 +243,13 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
         # tip yet: the skeleton's end may still hook into a spur, which a stiff tip
         # would carry on as a curl and so never find the end
         wide_tip = None if r.tip_found else 2.0 * look.mean_half_width
-        if not r.tip_found:
-            r = replace(r, curve=_cut_to_edges(r, look.mean_half_width))
         r = refine(image, r.curve, look, iterations=8, width_tol=width_tol, free_base=True,
                    smoothing=0.1, tip_window=wide_tip, tol_px=tol, tip_stiffness=0.0)
         look = TubeLook(polarity, _learn_widths(r, 9, look.mean_half_width), r.strength)
+    cut = None if r.tip_found else _cut_to_edges(r, look.mean_half_width)
+    if cut is not None:
+        r = refine(image, cut, look, iterations=8, free_base=True, smoothing=0.1,
+                   tip_window=2.0 * look.mean_half_width, tol_px=tol, tip_stiffness=0.0)
     if base_hint is None:
         # the skeleton may run on into a faint pipette that stops short of the
         # border (no width step at the border to tell): then no tube edges are
@@ -286,14 +288,14 @@ def spline_size(length_px: float, half_width_px: float, joints: tuple[float, ...
     return n_coef_for(length_px, 2 * half_width_px, widths_per_coef=per) + 2 * len(joints)
 
 
-def _cut_to_edges(r: Refined, half_width: float, run: int = 3) -> Curve:
+def _cut_to_edges(r: Refined, half_width: float, run: int = 2) -> Curve | None:
     """The curve cut back to half a width past the last of ``run`` consecutive
     profiles that found the tube's edges, when it runs on a width or more
-    beyond them: a skeleton that ran on into a dust speck by the tip (16 px
-    too long, and its end then never found on a 320x240 frame)."""
+    beyond them (else None): a skeleton that ran on into a dust speck by the
+    tip (16 px too long, and its end then never found on a 320x240 frame)."""
     gap = _leading_gap(replace(r, u=1.0 - r.u[::-1], valid=r.valid[::-1]), run)
     if gap < 2.0 * half_width or gap > 0.5 * r.curve.length:
-        return r.curve
+        return None
     curve = r.curve
     s, z = resample(curve)
     keep = s <= curve.length - gap + half_width
