@@ -7,9 +7,10 @@ The video does. The base is clamped in the pipette and stays put; the tip
 sweeps away as the tube bends. So the end whose surroundings change least
 from the first frame is the base.
 
-The measure is the change from the first frame, smoothed over about a tube
-width and in units of that smoothed change's own noise, at its largest over
-the frames. Not the temporal standard deviation: the tip leaves its first
+The measure is the change from the first frame (smoothed by a quarter of the
+tube's width, in units of that smoothed change's own spread over the image),
+at its largest over the frames, along the tube's path within a half-width of
+each end. Not the temporal standard deviation: the tip leaves its first
 place for good (a step, whose deviation is small when it goes early), and on
 a bright fluorescent tube the shot noise alone makes the held end "vary"
 more than the dark background the tip leaves (a 6 px tube: 3.8 against 2.1,
