@@ -256,7 +256,7 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
         # found over the first stretch, and the search for the tube's start
         # must reach past it
         hw0 = float(look.half_width[0])
-        reach = max(4.0 * hw0, _leading_gap(r) + 2.0 * hw0)
+        reach = max(4.0 * hw0, _edge_gap(r) + 2.0 * hw0)
         r = replace(r, curve=locate_base(image, r.curve, look, reach=reach))
     r = refine(image, r.curve, look, iterations=6, free_base=True, smoothing=0.1, tol_px=tol)
     r = refine(image, r.curve, look, iterations=4, tol_px=tol)
@@ -293,7 +293,7 @@ def _cut_to_edges(r: Refined, half_width: float, run: int = 2) -> Curve | None:
     profiles that found the tube's edges, when it runs on a width or more
     beyond them (else None): a skeleton that ran on into a dust speck by the
     tip (16 px too long, and its end then never found on a 320x240 frame)."""
-    gap = _leading_gap(replace(r, u=1.0 - r.u[::-1], valid=r.valid[::-1]), run)
+    gap = _edge_gap(r, run, from_tip=True)
     if gap < 2.0 * half_width or gap > 0.5 * r.curve.length:
         return None
     curve = r.curve
@@ -303,16 +303,18 @@ def _cut_to_edges(r: Refined, half_width: float, run: int = 2) -> Curve | None:
                            joints=curve.joints)
 
 
-def _leading_gap(r: Refined, run: int = 3) -> float:
-    """Arc length from the base to the first of ``run`` consecutive profiles
-    that found the tube's edges, px (0 if there is none)."""
-    ok = r.valid.astype(int)
+def _edge_gap(r: Refined, run: int = 3, *, from_tip: bool = False) -> float:
+    """Arc length from the base (or the tip) to the first of ``run`` consecutive
+    profiles that found the tube's edges, px (0 if there is none)."""
+    ok, u = r.valid.astype(int), r.u
+    if from_tip:
+        ok, u = ok[::-1], 1.0 - u[::-1]
     if ok.size < run:
         return 0.0
     runs = np.convolve(ok, np.ones(run, int), mode="valid") == run
     if not runs.any():
         return 0.0
-    return float(r.u[int(np.argmax(runs))] * r.curve.length)
+    return float(u[int(np.argmax(runs))] * r.curve.length)
 
 
 def _predict(history: list[Curve]) -> Curve:
