@@ -221,3 +221,19 @@ def end_edge(profiles: np.ndarray, step: float, *, polarity: int, window: float,
     found = ok.any(axis=1)
     offset = np.where(found, (_parabolic(leaving, idx) - mid) * step, np.nan)
     return offset, np.where(found, masked[np.arange(m), idx], -np.inf)
+
+
+def gradient_noise(image: np.ndarray, smooth_px: float) -> float:
+    """Robust spread of the profiles' edge filter over ``image``, intensity per px.
+
+    The derivative of a Gaussian of ``smooth_px`` along the rows (as along a
+    profile): over a frame that is mostly background its median absolute
+    deviation is the noise an edge must stand out of. Non-finite samples are
+    left out.
+    """
+    grad = gaussian_filter1d(np.asarray(image, dtype=np.float32), max(smooth_px, 0.5),
+                             axis=1, order=1, mode="nearest")
+    values = grad[np.isfinite(grad)]
+    if values.size == 0:
+        return 0.0
+    return float(1.4826 * np.median(np.abs(values - np.median(values))))

@@ -16,7 +16,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .centreline import Curve, basis_of, evaluate, jacobian
-from .profiles import edge_pairs, end_edge, sample_lines
+from .profiles import Edges, edge_pairs, end_edge, sample_lines
 
 #: Edge-midpoint scatter (px) up to which the roughness penalty keeps its
 #: nominal weight; noisier frames get it scaled by (scatter / this)².
@@ -48,11 +48,16 @@ class TubeLook:
         length (from base to tip), px.
     strength : float
         Typical inward intensity step at the edges, per px (sets thresholds).
+    smooth_px : float
+        Gaussian smoothing along the profiles before the edges are taken, px:
+        wider on noisy, blurred frames, where a narrow derivative sees mostly
+        noise (see :func:`pipeline.track.edge_scale`).
     """
 
     polarity: int
     half_width: np.ndarray
     strength: float
+    smooth_px: float = 0.8
 
     def half_width_at(self, u) -> np.ndarray:
         grid = np.linspace(0.0, 1.0, self.half_width.size)
@@ -204,6 +209,7 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
         normals = smp.normal[idx]
         profiles = sample_lines(image, smp.z[idx] - shift, normals, offsets)
         edges = edge_pairs(profiles, step, hw_u, polarity=look.polarity, window=window,
+                           smooth_px=look.smooth_px,
                            width_tol=width_tol, min_strength=min_strength)
         near = np.zeros(idx.size, bool)
         if avoid_contact:
@@ -303,6 +309,14 @@ def widths_at(image: np.ndarray, curve: Curve, look: TubeLook, u: np.ndarray, *,
     """The tube's outer width measured across ``curve`` at fractions ``u`` of
     its length (any spacing, e.g. 1 px apart about a section joint), px; NaN
     where no edge pair of a plausible width is found."""
+    edges = edges_at(image, curve, look, u, width_tol=width_tol)
+    return np.where(edges.valid, edges.width, np.nan)
+
+
+def edges_at(image: np.ndarray, curve: Curve, look: TubeLook, u: np.ndarray, *,
+             width_tol: float = 0.3) -> Edges:
+    """The tube's edge pairs across ``curve`` at fractions ``u`` of its length
+    (offsets from the curve, px), as ``look`` finds them."""
     u = np.asarray(u, dtype=float)
     basis = basis_of(curve)
     smp = evaluate(curve, basis)
@@ -312,9 +326,10 @@ def widths_at(image: np.ndarray, curve: Curve, look: TubeLook, u: np.ndarray, *,
     window = 0.3 * hw
     offsets, step = _profile_offsets(hw, window, width_tol)
     edges = edge_pairs(sample_lines(image, z, normal, offsets), step, look.half_width_at(u),
+                       smooth_px=look.smooth_px,
                        polarity=look.polarity, window=window, width_tol=width_tol,
                        min_strength=0.25 * look.strength)
-    return np.where(edges.valid, edges.width, np.nan)
+    return edges
 
 
 def _tip_offset(image, smp, shift, look: TubeLook, window: float, step: float, *,
@@ -331,6 +346,7 @@ def _tip_offset(image, smp, shift, look: TubeLook, window: float, step: float, *
     offsets = np.arange(-np.ceil(half / step), np.ceil(half / step) + 1) * step
     prof = sample_lines(image, starts, np.full(lateral.size, tangent), offsets)
     off, strength = end_edge(prof, step, polarity=look.polarity, window=reach,
+                             smooth_px=look.smooth_px,
                              nearest=nearest)
     good = np.isfinite(off) & (strength > 0.25 * look.strength)
     if good.sum() < 2:
@@ -407,6 +423,7 @@ def locate_base(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0,
     offsets = np.arange(-np.ceil(2 * hw), np.ceil(2 * hw) + 1, 0.5)
     prof = sample_lines(image, starts, np.full(s.size, 1j * axis), offsets)
     edges = edge_pairs(prof, 0.5, hw, polarity=look.polarity, window=0.3 * hw,
+                       smooth_px=look.smooth_px,
                        width_tol=0.15, min_strength=0.25 * look.strength)
     # each profile's evidence of the tube: its edge step where an edge pair of the
     # tube's width is found, else 0. Behind the base, noise or the pipette's wall

@@ -53,7 +53,16 @@ from .joints import (
     step_windows,
     width_steps,
 )
-from .refine import Refined, TubeLook, locate_base, refine, self_contact, widths_at
+from .profiles import gradient_noise
+from .refine import (
+    Refined,
+    TubeLook,
+    edges_at,
+    locate_base,
+    refine,
+    self_contact,
+    widths_at,
+)
 from .segment import detect
 
 #: Profiles that must hold a valid edge pair for a fit to be accepted.
@@ -73,6 +82,12 @@ JOINT_CHECK_GROWTH = 1.25
 #: first fit (the strongest edge pairs win): the mask of a strong, thin band
 #: spreads over its blurred skirts, to twice the width of a 6 px opaque tube.
 WIDTH_GUESSES = (1.0, 0.6, 0.36)
+#: Gaussian smoothing (px) of the edge profiles tried when the tracker starts,
+#: narrowest first, and the edge-to-noise ratio that is enough (:func:`edge_scale`).
+#: Measured on 87 rendered scenes: with 0.8 px alone, two noisy low-contrast
+#: scenes lost 21 frames (edge-to-noise 1.8–1.9); with these, none.
+EDGE_SCALES = (0.8, 1.2, 1.6, 2.4)
+SNR_TARGET = 5.0
 
 
 @dataclass(frozen=True)
@@ -235,6 +250,7 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
     if r.valid_fraction < 0.3:
         return None
     look = TubeLook(polarity, _learn_widths(r, 9, hw), r.strength)
+    look = edge_scale(image, r.curve, look)
     # the base tangent is measured once, here, with a strong roughness penalty so
     # that φ(0) follows the whole tube rather than the few profiles by the base
     for width_tol in (0.3, 0.2):
@@ -245,7 +261,8 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
         wide_tip = None if r.tip_found else 2.0 * look.mean_half_width
         r = refine(image, r.curve, look, iterations=8, width_tol=width_tol, free_base=True,
                    smoothing=0.1, tip_window=wide_tip, tol_px=tol, tip_stiffness=0.0)
-        look = TubeLook(polarity, _learn_widths(r, 9, look.mean_half_width), r.strength)
+        look = replace(look, half_width=_learn_widths(r, 9, look.mean_half_width),
+                       strength=r.strength)
     cut = None if r.tip_found else _cut_to_edges(r, look.mean_half_width)
     if cut is not None:
         r = refine(image, cut, look, iterations=8, free_base=True, smoothing=0.1,
@@ -277,6 +294,29 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
                        free_base=True, smoothing=0.1, tol_px=tol)
             r = refine(image, r.curve, look, iterations=4, tol_px=tol)
     return r, look, det.base_source
+
+
+def edge_scale(image: np.ndarray, curve: Curve, look: TubeLook) -> TubeLook:
+    """``look`` with the narrowest profile smoothing at which the tube's edges
+    stand :data:`SNR_TARGET` times above the frame's noise (or, if none does,
+    the one at which they stand highest).
+
+    A narrow derivative places a sharp edge best, but on a noisy, blurred,
+    low-contrast frame it sees mostly noise: the edge pairs scatter and noise
+    beyond the tip passes for the tube going on. The edges are measured across
+    ``curve`` (the first fit) at each of :data:`EDGE_SCALES`, the noise as the
+    spread of the same filter over the whole frame.
+    """
+    u = np.linspace(0.02, 0.98, 64)
+    snr = np.zeros(len(EDGE_SCALES))
+    for i, smooth in enumerate(EDGE_SCALES):
+        edges = edges_at(image, curve, replace(look, smooth_px=smooth, strength=0.0), u)
+        if edges.valid.sum() >= 8:
+            noise = max(gradient_noise(image, smooth), 1e-12)
+            snr[i] = float(np.median(edges.strength[edges.valid])) / noise
+    enough = np.flatnonzero(snr >= SNR_TARGET)
+    pick = int(enough[0]) if enough.size else int(np.argmax(snr))
+    return replace(look, smooth_px=EDGE_SCALES[pick])
 
 
 def spline_size(length_px: float, half_width_px: float, joints: tuple[float, ...],

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 from scipy.special import erf
 
-from pipeline.profiles import edge_pairs, end_edge, sample_lines
+from pipeline.profiles import edge_pairs, end_edge, gradient_noise, sample_lines
 
 
 def _profiles(centres, half_widths, polarity=-1, step=0.5, half=40.0, noise=0.0, seed=0,
@@ -75,3 +75,18 @@ def test_sample_lines_reads_bilinear_values_and_nan_outside():
     assert got[0, 0] == pytest.approx(7 + 500)
     assert got[0, 1] == pytest.approx(7 + 550)
     assert np.isnan(got[0, 2])
+
+
+@pytest.mark.parametrize("smooth", [0.8, 1.6, 2.4])
+def test_gradient_noise_is_the_spread_of_the_edge_filter_on_white_noise(smooth):
+    sigma = 0.02
+    img = 0.5 + np.random.default_rng(5).normal(0, sigma, (400, 400))
+    # a derivative of a Gaussian of scale s passes white noise with a spread of
+    # σ·(4·√π·s³)^(−1/2)
+    expected = sigma / np.sqrt(4 * np.sqrt(np.pi) * smooth**3)
+    assert gradient_noise(img, smooth) == pytest.approx(expected, rel=0.03)
+    # a tube's two strong edges move the robust spread little
+    img[:, 100:124] += 0.3
+    assert gradient_noise(img, smooth) == pytest.approx(expected, rel=0.1)
+    img[:5, :5] = np.nan  # outside a crop: left out
+    assert np.isfinite(gradient_noise(img, smooth))

@@ -1,11 +1,16 @@
 """The tracker's own checks: what it refuses to report as a measurement."""
 
+from dataclasses import replace
+
 import cv2
 import numpy as np
 
 from pipeline import track
+from pipeline.centreline import fit_to_polyline
+from pipeline.refine import TubeLook
 from pipeline.render import Renderer, default_scene, truth_tables
 from pipeline.track import MAX_LENGTH_STEP, RESTART_AFTER, track_frames
+from tests.pipeline.synthetic import arc_axis, tube_image
 
 LOOK = {"name": "opaque", "photons": 0.0, "read_noise": 0.0, "flicker": 0.0, "dust": 0}
 
@@ -97,3 +102,23 @@ def test_the_frame_after_a_start_skips_the_fresh_detection_when_the_tube_stayed(
     detections.clear()
     moved = list(track_frames([frames[0], frames[4]]))
     assert len(detections) == 2 and moved[1].ok
+
+
+def _straight_tube(contrast, noise, edge_px):
+    base = 60 - 240j
+    z, _ = arc_axis(base, 0.0, 300.0, 1 / 400)
+    img = tube_image((360, 480), base, 0.0, 300.0, 1 / 400, 7.0, contrast=contrast,
+                     noise=noise, edge_px=edge_px)
+    return img, fit_to_polyline(z, 0.0, n_coef=12), TubeLook(-1, np.full(5, 7.0), 0.0)
+
+
+def test_edges_are_taken_as_sharp_as_the_noise_allows():
+    # clear edges: the narrowest smoothing, which places them best
+    img, curve, look = _straight_tube(0.35, 0.01, 0.7)
+    assert track.edge_scale(img, curve, look).smooth_px == track.EDGE_SCALES[0]
+    # faint, blurred edges in strong noise: smoothed more, which raises the
+    # edges above the noise (a blurred step loses less than white noise does)
+    img, curve, look = _straight_tube(0.06, 0.02, 1.5)
+    wide = track.edge_scale(img, curve, look).smooth_px
+    assert wide > track.EDGE_SCALES[0]
+    assert track.edge_scale(img, curve, replace(look, smooth_px=wide)).smooth_px == wide
