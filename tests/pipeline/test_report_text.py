@@ -4,6 +4,7 @@ import numpy as np
 import pandas as pd
 
 from pipeline.report import _growth_line
+from pipeline.tracking_report import drawn_section
 
 
 def test_the_error_growth_is_measured_from_the_per_frame_table(tmp_path):
@@ -21,3 +22,21 @@ def test_the_error_growth_is_measured_from_the_per_frame_table(tmp_path):
     assert "+1.00 %" in line and "(ahead;" in line
     assert "In ahead the centreline sits 0.30–0.30 px" in line
     assert _growth_line(tmp_path / "missing.csv", track) == ""
+
+
+def test_the_drawn_scenes_section_counts_and_lists_the_misses():
+    def row(name, lost, median, meets):
+        return {"scene": name, "sample": "5", "look": "fluorescent", "photons": np.nan,
+                "blur_px": 2.0, "size": "800x600", "format": "mp4/8", "frames": 12,
+                "frames_lost": lost, "angle_median_deg": median, "angle_p95_deg": 2 * median,
+                "angle_max_deg": 3 * median, "centreline_rms_px": 0.1,
+                "length_error_max_pct": 0.2, "meets_targets": meets}
+
+    drawn = pd.DataFrame([row("a", 0, 0.2, True), row("b", 2, 1.5, False),
+                          row("c", 0, 9.0, False)])
+    text = "\n".join(drawn_section(drawn))
+    assert "**1 of 3 meet every target**; frames lost: 2 of 36" in text
+    # the misses, worst first; the scene that meets every target is not listed
+    assert text.index("| c |") < text.index("| b |")
+    assert "| a |" not in text
+    assert "| c | 5 | fluorescent | — | 2.0 | 800x600 | mp4/8 | 0 | 9.00 |" in text
