@@ -153,3 +153,15 @@ def test_a_coarse_spline_missing_a_joint_is_told_by_the_finer_one():
     blind = fit_to_polyline(z, 0.0, n_coef=8)
     assert spacing_f(blind, 22, u, pts) > 20.0
     assert spacing_f(blind, 8, u, pts) == 0.0  # no finer spline to compare with
+
+
+def test_a_kept_joint_beyond_the_last_midpoint_does_not_break_the_search():
+    # no profile found the tube past 0.78 (a crossing, a faint tip): the
+    # curvature after the kept joint at 0.88 is then fixed by nothing, neither
+    # data nor roughness (a triple knot lets it step freely)
+    z, _ = _two_arcs(split=0.7)
+    smooth = fit_to_polyline(z, 0.0, n_coef=30)
+    u, pts = _midpoints(z, 0.05, seed=4)
+    pts[u > 0.78] = np.nan
+    found = find_joints(smooth, u, pts, HALF_WIDTH, keep=(0.75, 0.88))
+    assert found[-2:] == (0.75, 0.88)
