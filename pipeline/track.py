@@ -528,10 +528,14 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
         r = max(cands, key=lambda c: _score(c) * (1.0 if accept(c) else 0.1))
         stage = "wide"
         work = 1.0
-        if not accept(r) and not crossing:
+        # the frame after a start (no velocity yet) also gets a fresh detection
+        # when the fast fit failed: a coarse jointed spline, pulled far from the
+        # last shape, can settle on a wrong curl that fits well enough (320x240,
+        # sample 7: 127° where the tube bent −18°, accepted; found afresh: −18.6°)
+        if (not accept(r) or len(history) < 2) and not crossing:
             cand = _redetect(image, history[-1], look, settings)
-            if cand is not None and (accept(cand) or (not accept(r)
-                                                      and _score(cand) > _score(r))):
+            if cand is not None and _score(cand) * (1.0 if accept(cand) else 0.1) > \
+                    _score(r) * (1.0 if accept(r) else 0.1):
                 r = cand
             stage = "redetect"
     elif len(history) < 2 and not crossing and _moved(r.curve, history[-1]) > hw:
