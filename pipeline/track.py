@@ -308,15 +308,18 @@ def edge_scale(image: np.ndarray, curve: Curve, look: TubeLook) -> TubeLook:
     spread of the same filter over the whole frame.
     """
     u = np.linspace(0.02, 0.98, 64)
+    # every 4th row: the filter runs along the rows, so this is the same noise
+    # at a quarter of the cost
+    rows = image[::4]
     snr = np.zeros(len(EDGE_SCALES))
     for i, smooth in enumerate(EDGE_SCALES):
         edges = edges_at(image, curve, replace(look, smooth_px=smooth, strength=0.0), u)
         if edges.valid.sum() >= 8:
-            noise = max(gradient_noise(image, smooth), 1e-12)
+            noise = max(gradient_noise(rows, smooth), 1e-12)
             snr[i] = float(np.median(edges.strength[edges.valid])) / noise
-    enough = np.flatnonzero(snr >= SNR_TARGET)
-    pick = int(enough[0]) if enough.size else int(np.argmax(snr))
-    return replace(look, smooth_px=EDGE_SCALES[pick])
+        if snr[i] >= SNR_TARGET:
+            return replace(look, smooth_px=smooth)
+    return replace(look, smooth_px=EDGE_SCALES[int(np.argmax(snr))])
 
 
 def spline_size(length_px: float, half_width_px: float, joints: tuple[float, ...],
