@@ -163,6 +163,9 @@ class FrameTrack:
         Share of the frame's pixels the tracker looked at (its crop).
     base_source : str
         How the base was found, on frames that (re)started the tracker.
+    smooth_px : float
+        The edge profiles' smoothing chosen (:func:`edge_scale`), px, on
+        frames that (re)started the tracker; NaN on the others.
     """
 
     frame: int
@@ -173,6 +176,7 @@ class FrameTrack:
     valid_fraction: float = float("nan")
     work_fraction: float = 1.0
     base_source: str = ""
+    smooth_px: float = float("nan")
 
     @property
     def ok(self) -> bool:
@@ -486,7 +490,8 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
         r, look, source = init
         status = "ok" if _good(r, look) else "tube found but its edges do not fit"
         return (FrameTrack(index, status, r.curve if status == "ok" else None, "init",
-                           r.residual_px, r.valid_fraction, base_source=source), look)
+                           r.residual_px, r.valid_fraction, base_source=source,
+                           smooth_px=look.smooth_px), look)
     hw = look.mean_half_width
     pred = _predict(history)
     last_length = history[-1].length

@@ -20,7 +20,14 @@ import pandas as pd
 from . import schema as S
 from .atomic import write_csv, write_json
 from .centreline import Curve, resample, tip_point
-from .track import JOINT_CHECK_DEG, FrameTrack, TrackSettings, track_frames
+from .track import (
+    EDGE_SCALES,
+    JOINT_CHECK_DEG,
+    SNR_TARGET,
+    FrameTrack,
+    TrackSettings,
+    track_frames,
+)
 
 
 def scale_from_length(results: list[FrameTrack], length_um: float) -> tuple[float, int]:
@@ -221,6 +228,7 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
     stages = Counter(r.stage for r in results if r.stage)
     notes = _notes(results, stages, base_hint is not None, rate)
     notes.append(_joints_note(results, sample))
+    notes.append(_smoothing_note(results))
     if motion_note:
         notes.append(motion_note)
     base_source = "given (--base)" if base_hint else next(
@@ -312,6 +320,19 @@ def _joints_note(results, sample) -> str:
                 f"{JOINT_CHECK_DEG:g} deg)")
     return ("section joints: none found (the tube's width did not step, nor its curvature on "
             f"frames bent >= {JOINT_CHECK_DEG:g} deg); give --sample to use its sections")
+
+
+def _smoothing_note(results) -> str:
+    """How much the edge profiles were smoothed, and why."""
+    chosen = sorted({r.smooth_px for r in results if np.isfinite(r.smooth_px)})
+    if not chosen:
+        return "edge profiles: no start found a tube"
+    where = " / ".join(f"{s:g}" for s in chosen)
+    if chosen == [EDGE_SCALES[0]]:
+        return (f"edge profiles smoothed over {where} px, the narrowest tried: the tube's "
+                "edges stood clear of the frame's noise")
+    return (f"edge profiles smoothed over {where} px, not the narrowest ({EDGE_SCALES[0]:g} px): "
+            f"there the tube's edges stood less than {SNR_TARGET:g}x above the frame's noise")
 
 
 def _run_record(run: TrackRun, source, rate, results, settings: TrackSettings) -> dict:

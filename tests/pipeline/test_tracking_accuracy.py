@@ -299,6 +299,8 @@ def test_a_single_section_sample_is_not_searched_for_joints(tmp_path, monkeypatc
     assert not searched
     notes = json.loads((tmp_path / "tracked" / S.RUN_FILE).read_text())["left_out_and_why"]
     assert any("single section" in n and "not looked for" in n for n in notes), notes
+    # a clean scene: the sharpest edge filter
+    assert any(n.startswith("edge profiles smoothed over 0.8 px, the narrowest") for n in notes)
 
 
 def test_a_faint_pipette_short_of_the_border_is_not_taken_for_tube(tmp_path):
@@ -363,6 +365,9 @@ def test_a_noisy_low_contrast_tube_is_seen_through_smoother_profiles(tmp_path):
     assert acc.length_error_max_pct <= LENGTH_ERROR_PCT
     _assert_same_sign(tracks, truth)
     # (the angle is noise-limited here: median 2.2, max 6.1 deg, left unasserted)
+    notes = json.loads((tmp_path / "tracked" / S.RUN_FILE).read_text())["left_out_and_why"]
+    assert any(n.startswith("edge profiles smoothed over 2.4 px, not the narrowest")
+               for n in notes), notes
 
 
 def test_a_faint_width_step_near_the_tip_is_taken_for_a_joint(tmp_path):
