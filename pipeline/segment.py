@@ -231,8 +231,19 @@ def _skeleton_graph(skel: np.ndarray):
     return graph.tocsr(), rr, cc
 
 
-def longest_path(skel: np.ndarray):
+def longest_path(skel: np.ndarray, *, border_bonus: float = 0.0, margin: float = 0.0):
     """The longest shortest path between two end points of a skeleton.
+
+    Parameters
+    ----------
+    skel : (rows, cols) bool ndarray
+    border_bonus : float
+        Length (px) added for each end within ``margin`` of the image border:
+        a branch that runs out of the frame (the pipette, or the tube leaving
+        it) then wins over a spur of about the same length into a speck of
+        dust stuck to it.
+    margin : float
+        px.
 
     Returns
     -------
@@ -248,8 +259,12 @@ def longest_path(skel: np.ndarray):
         ends = np.arange(rr.size)[:: max(1, rr.size // 64)]
     dist, pred = shortest_path(graph, indices=ends, return_predecessors=True)
     dist[~np.isfinite(dist)] = -1
-    i, j = np.unravel_index(np.argmax(dist[:, ends] if ends.size else dist), (ends.size,
-                                                                               ends.size))
+    length = dist[:, ends]
+    if border_bonus > 0:
+        bonus = np.array([border_bonus if _touches_border((rr[e], cc[e]), skel.shape, margin)
+                          else 0.0 for e in ends])
+        length = np.where(length >= 0, length + bonus[:, None] + bonus[None, :], length)
+    i, j = np.unravel_index(np.argmax(length), (ends.size, ends.size))
     src, dst = ends[i], ends[j]
     path = [dst]
     while path[-1] != src:
@@ -320,7 +335,8 @@ def detect(image: np.ndarray, *, base_hint=None, base_end=None) -> Detection | N
     filled, _ = fill_tube(fill_lumen(mask))
     dist = ndi.distance_transform_edt(filled)
     skel = skeletonize(filled)
-    path_rc = longest_path(skel)
+    radius = float(np.median(dist[skel])) if skel.any() else 0.0
+    path_rc = longest_path(skel, border_bonus=2.0 * radius, margin=2.0 + radius)
     if path_rc.shape[0] < 5:
         return None
     width = 2 * dist[path_rc[:, 0], path_rc[:, 1]]

@@ -7,9 +7,10 @@ import pandas as pd
 import pytest
 
 from pipeline import schema as S
+from pipeline.accuracy import score_folder
 from pipeline.motion import end_motion
 from pipeline.render import default_scene, render_scene
-from pipeline.segment import AMBIGUOUS_BASE, detect
+from pipeline.segment import AMBIGUOUS_BASE, detect, longest_path
 from pipeline.track import as_float
 from pipeline.tracks import track_video
 
@@ -126,3 +127,34 @@ def test_the_end_that_stays_is_the_base_on_small_dim_tubes(tmp_path, case):
     base = (truth[S.BASE_X][0] + 1j * truth[S.BASE_Y][0]) / scale  # px, y up
     static = det.path[-1] if motion.base_is_last else det.path[0]
     assert abs(static - base) < 2 * det.half_width
+
+
+def test_a_branch_out_of_the_frame_wins_over_a_dust_spur_of_its_length():
+    # a band from the left of the frame to its right border, with a speck of dust
+    # stuck to it near the border: its spur is as long as the band's last stretch
+    skel = np.zeros((60, 120), bool)
+    skel[30, 10:120] = True               # runs out of the frame on the right
+    for k in range(14):                   # the spur: up and right from (30, 104)
+        skel[29 - k, 105 + k // 3] = True
+    plain = longest_path(skel)
+    assert plain[-1].tolist() != [30, 119] and plain[0].tolist() != [30, 119]
+    path = longest_path(skel, border_bonus=10.0, margin=3.0)
+    assert [30, 119] in (path[0].tolist(), path[-1].tolist())
+    assert [30, 10] in (path[0].tolist(), path[-1].tolist())
+
+
+def test_a_pipette_reaching_a_dark_dusty_corner_is_still_the_base(tmp_path):
+    """Sample 7, strong vignetting and 57 dust specks, 16-bit TIFF: a speck stuck
+    to the pipette near the border made a skeleton spur as long as the pipette's
+    last stretch; the skeleton ended in it, short of the border, the pipette was
+    not taken for one, and the tracked tube ran 154 px on into it (30 % long)."""
+    look = {"name": "transmitted", "gradient": 0.2969009967353381,
+            "vignetting": 0.49990384039106345, "dust": 57, "blur_px": 1.492966833040871}
+    scene = default_scene(7, n_frames=20, seed=9011, look=look, width=640, height=480,
+                          base_angle_deg=185.3319807479148)
+    folder = render_scene(scene, tmp_path / "scene", fmt="tiff", bit_depth=16)
+    track_video(folder / "frames.tif", tmp_path / "out", um_per_px=19.41799589910608)
+    errors, acc = score_folder(folder, tmp_path / "out")
+    assert acc.frames_lost == 0
+    assert acc.base_error_max_px < 3.0
+    assert acc.length_error_max_pct < 1.0
