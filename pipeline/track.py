@@ -268,6 +268,10 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
         look = replace(look, half_width=_learn_widths(r, 9, look.mean_half_width),
                        strength=r.strength)
     cut = None if r.tip_found else _cut_to_edges(r, look.mean_half_width)
+    if cut is None and not r.tip_found:
+        # the tube's edges run on to the curve's end: the skeleton stopped short
+        # of the tip (its mask broke up there), and the tube goes on beyond
+        cut = _run_on(image, r, look, tol)
     if cut is not None:
         r = refine(image, cut, look, iterations=8, free_base=True, smoothing=0.1,
                    tip_window=2.0 * look.mean_half_width, tol_px=tol, tip_stiffness=0.0)
@@ -333,6 +337,28 @@ def spline_size(length_px: float, half_width_px: float, joints: tuple[float, ...
     per joint (its triple knot; the other knots keep their spacing)."""
     per = settings.jointed_widths_per_coef if known else settings.widths_per_coef
     return n_coef_for(length_px, 2 * half_width_px, widths_per_coef=per) + 2 * len(joints)
+
+
+def _run_on(image: np.ndarray, r: Refined, look: TubeLook, tol: float) -> Curve | None:
+    """When the tube's edges run on to the curve's end, the curve carried on
+    straight by half its length, fitted to the edges, and cut back to where
+    they stop (None if they do not run to the end, or do not stop)."""
+    hw = look.mean_half_width
+    if _edge_gap(r, 2, from_tip=True) >= hw:
+        return None
+    curve = r.curve
+    extra = 0.5 * curve.length
+    s, z = resample(curve)
+    heading = z[-1] - z[max(0, z.size - 1 - int(np.ceil(hw)))]
+    if abs(heading) == 0:
+        return None
+    ahead = z[-1] + np.arange(1.0, extra + 1.0) * heading / abs(heading)
+    longer = fit_to_polyline(np.concatenate([z, ahead]), curve.base_angle,
+                             n_coef=int(np.ceil(curve.coef.size * 1.5)))
+    longer = replace(longer, base=curve.base)
+    fitted = refine(image, longer, look, iterations=6, fit_length=False, smoothing=0.1,
+                    tol_px=tol, tip_stiffness=0.0)
+    return _cut_to_edges(fitted, hw)
 
 
 def _cut_to_edges(r: Refined, half_width: float, run: int = 2) -> Curve | None:

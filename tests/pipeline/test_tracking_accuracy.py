@@ -401,3 +401,21 @@ def test_the_frame_after_a_start_is_also_found_afresh_when_its_fit_fails(tmp_pat
     assert abs(errors["angle_error_deg"].iloc[1]) <= ANGLE_MAX_DEG
     assert acc.angle_max <= ANGLE_MAX_DEG, f"max {acc.angle_max:.2f} deg"
     assert acc.angle_median <= 1.0, f"median {acc.angle_median:.2f} deg"
+
+
+def test_a_skeleton_that_stops_short_of_the_tip_is_carried_on_to_it(tmp_path):
+    """A 28 px wide transparent tube whose mask broke up a quarter of its
+    length before the tip (its lumen and rims apart): the skeleton stopped
+    90 px short, the end search (two widths) did not reach, and the first
+    frame was lost. The curve is now carried on straight while the tube's
+    edges run to its end, and cut back to where they stop."""
+    look = {"name": "transmitted", "photons": 1210.6720130515869,
+            "vignetting": 0.3579867247693005}
+    errors, acc, tracks, truth = _render_and_track(tmp_path, 5, fmt="png", seed=20261132,
+                                                   width=480, height=360, n_frames=12,
+                                                   base_angle_deg=186.7418840596137,
+                                                   mirror=True, look=look)
+    lost = errors.loc[errors[S.STATUS] != S.STATUS_OK, [S.FRAME, S.STATUS]]
+    assert acc.frames_lost == 0, lost.to_string(index=False)
+    assert abs(errors["length_error_pct"].iloc[0]) <= LENGTH_ERROR_PCT
+    _assert_meets_spec(errors, acc)
