@@ -274,6 +274,17 @@ def _draw_scene(rng: np.random.Generator, index: int):
         look["photons"] = float(rng.uniform(500, 1500))
     if rng.random() < 0.3:
         look["blur_px"] = float(rng.uniform(0.5, 2.0))
+    # uneven light, dust, flicker and fainter tubes than the looks' own
+    if rng.random() < 0.4:
+        look["gradient"] = float(rng.uniform(0.2, 0.6))
+    if rng.random() < 0.4:
+        look["vignetting"] = float(rng.uniform(0.2, 0.6))
+    if rng.random() < 0.3:
+        look["dust"] = int(rng.integers(10, 60))
+    if rng.random() < 0.2:
+        look["flicker"] = float(rng.uniform(0.01, 0.05))
+    if look["name"] != "fluorescent" and rng.random() < 0.2:
+        look["contrast"] = float(rng.uniform(0.25, 0.6))
     width, height = ((320, 240), (480, 360), (640, 480), (800, 600), (1024, 768))[
         int(rng.integers(0, 5))]
     fmt, depth = (("avi", 8), ("mp4", 8), ("png", 8), ("tiff", 16))[int(rng.integers(0, 4))]
@@ -288,8 +299,11 @@ def drawn_scenes(work: Path, n: int = 24) -> pd.DataFrame:
     scale, one row per scene: what was drawn and how well it was tracked.
 
     Samples 1–8; transmitted, fluorescent, low-contrast or opaque; 40 % with
-    few photons (500–1500), 30 % blurred (0.5–2 px); 320×240 to 1024×768; any
-    orientation, mirrored or not; MJPG AVI, MP4, PNG folder or 16-bit TIFF.
+    few photons (500–1500), 30 % blurred (0.5–2 px); 40 % each with a stronger
+    illumination gradient or vignetting (0.2–0.6), 30 % with 10–60 dust specks,
+    20 % with flicker (1–5 %), 20 % of the non-fluorescent ones fainter
+    (contrast 0.25–0.6); 320×240 to 1024×768; any orientation, mirrored or
+    not; MJPG AVI, MP4, PNG folder or 16-bit TIFF.
     """
     import json
 
@@ -329,7 +343,9 @@ def drawn_section(drawn: pd.DataFrame) -> list[str]:
         "### Scenes drawn at random", "",
         f"{len(drawn)} scenes drawn at random (fixed seed) over what a lab's videos vary in: "
         "samples 1–8; transmitted, fluorescent, low-contrast or opaque; 40 % with few "
-        "photons (500–1500), 30 % blurred (0.5–2 px); 320×240 to 1024×768; any "
+        "photons (500–1500), 30 % blurred (0.5–2 px); 40 % each with a stronger "
+        "illumination gradient or vignetting, 30 % with 10–60 dust specks, 20 % with "
+        "flicker, 20 % of the non-fluorescent ones fainter; 320×240 to 1024×768; any "
         "orientation, mirrored or not; MJPG AVI, MP4, PNG folder or 16-bit TIFF; 12 frames "
         "each. No setting of the tracker was chosen on them.", "",
         f"**{len(ok)} of {len(drawn)} meet every target**; frames lost: "
