@@ -348,7 +348,7 @@ def _run_on(image: np.ndarray, r: Refined, look: TubeLook, tol: float) -> Curve 
         return None
     curve = r.curve
     extra = 0.5 * curve.length
-    s, z = resample(curve)
+    _, z = resample(curve)
     heading = z[-1] - z[max(0, z.size - 1 - int(np.ceil(hw)))]
     if abs(heading) == 0:
         return None

@@ -264,27 +264,27 @@ def settings_section(sweep: pd.DataFrame, speed: pd.DataFrame) -> list[str]:
     return lines
 
 
+#: Look settings drawn besides the look itself: (field, share of the scenes,
+#: range). Noise and blur; then uneven light, dust, flicker and fainter tubes
+#: than the looks' own.
+_DRAWN_LOOK = (("photons", 0.4, (500, 1500)), ("blur_px", 0.3, (0.5, 2.0)),
+               ("gradient", 0.4, (0.2, 0.6)), ("vignetting", 0.4, (0.2, 0.6)),
+               ("dust", 0.3, (10, 60)), ("flicker", 0.2, (0.01, 0.05)),
+               ("contrast", 0.2, (0.25, 0.6)))
+
+
 def _draw_scene(rng: np.random.Generator, index: int):
     """One scene drawn at random, and the file format to render it in."""
     from .render import default_scene
 
     sample = int(rng.integers(1, 9))
     look = {"name": str(rng.choice(["transmitted", "fluorescent", "low_contrast", "opaque"]))}
-    if rng.random() < 0.4:
-        look["photons"] = float(rng.uniform(500, 1500))
-    if rng.random() < 0.3:
-        look["blur_px"] = float(rng.uniform(0.5, 2.0))
-    # uneven light, dust, flicker and fainter tubes than the looks' own
-    if rng.random() < 0.4:
-        look["gradient"] = float(rng.uniform(0.2, 0.6))
-    if rng.random() < 0.4:
-        look["vignetting"] = float(rng.uniform(0.2, 0.6))
-    if rng.random() < 0.3:
-        look["dust"] = int(rng.integers(10, 60))
-    if rng.random() < 0.2:
-        look["flicker"] = float(rng.uniform(0.01, 0.05))
-    if look["name"] != "fluorescent" and rng.random() < 0.2:
-        look["contrast"] = float(rng.uniform(0.25, 0.6))
+    for field, share, (low, high) in _DRAWN_LOOK:
+        if field == "contrast" and look["name"] == "fluorescent":
+            continue  # (an emitting tube has no transmission contrast)
+        if rng.random() < share:
+            look[field] = (int(rng.integers(low, high)) if field == "dust"
+                           else float(rng.uniform(low, high)))
     width, height = ((320, 240), (480, 360), (640, 480), (800, 600), (1024, 768))[
         int(rng.integers(0, 5))]
     fmt, depth = (("avi", 8), ("mp4", 8), ("png", 8), ("tiff", 16))[int(rng.integers(0, 4))]
