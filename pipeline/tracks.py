@@ -327,12 +327,16 @@ def _smoothing_note(results) -> str:
     chosen = sorted({r.smooth_px for r in results if np.isfinite(r.smooth_px)})
     if not chosen:
         return "edge profiles: no start found a tube"
-    where = " / ".join(f"{s:g}" for s in chosen)
     if chosen == [EDGE_SCALES[0]]:
-        return (f"edge profiles smoothed over {where} px, the narrowest tried: the tube's "
+        return (f"edge profiles smoothed over {chosen[0]:g} px, the narrowest tried: the tube's "
                 "edges stood clear of the frame's noise")
-    return (f"edge profiles smoothed over {where} px, not the narrowest ({EDGE_SCALES[0]:g} px): "
-            f"there the tube's edges stood less than {SNR_TARGET:g}x above the frame's noise")
+    why = (f"where the narrowest ({EDGE_SCALES[0]:g} px) left the tube's edges less than "
+           f"{SNR_TARGET:g}x above the frame's noise")
+    if len(chosen) == 1:
+        return f"edge profiles smoothed over {chosen[0]:g} px, not the narrowest: {why}"
+    where = ", ".join(f"{s:g}" for s in chosen)
+    return f"edge profiles smoothed over {where} px, chosen afresh at each start: wider {why}"
+
 
 
 def _run_record(run: TrackRun, source, rate, results, settings: TrackSettings) -> dict:

@@ -122,3 +122,19 @@ def test_edges_are_taken_as_sharp_as_the_noise_allows():
     wide = track.edge_scale(img, curve, look).smooth_px
     assert wide > track.EDGE_SCALES[0]
     assert track.edge_scale(img, curve, replace(look, smooth_px=wide)).smooth_px == wide
+
+
+def test_the_run_says_which_edge_smoothing_each_start_chose():
+    from pipeline.track import FrameTrack
+    from pipeline.tracks import _smoothing_note
+
+    def start(smooth):
+        return FrameTrack(0, "ok", None, "init", smooth_px=smooth)
+
+    later = FrameTrack(1, "ok", None, "fast")  # frames after a start carry none
+    assert _smoothing_note([start(0.8), later]).startswith(
+        "edge profiles smoothed over 0.8 px, the narrowest tried")
+    assert "over 1.6 px, not the narrowest" in _smoothing_note([start(1.6), later])
+    assert "over 0.8, 1.6 px, chosen afresh at each start" in _smoothing_note(
+        [start(1.6), later, start(0.8)])
+    assert _smoothing_note([later]) == "edge profiles: no start found a tube"
