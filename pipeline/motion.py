@@ -108,8 +108,9 @@ def change_map(frames: Iterable[np.ndarray], smooth_px: float, *, target: int = 
         # a flickering lamp scales the whole frame: as the (static) median does
         gain = float(np.median(small)) / max(float(np.median(first)), 1e-9)
         diff = cv2.GaussianBlur(small - gain * first, (0, 0), sigma)
-        spread = 1.4826 * float(np.median(np.abs(diff - np.median(diff))))
-        np.maximum(out, np.abs(diff - np.median(diff)) / max(spread, 1e-9), out=out)
+        dev = np.abs(diff - np.median(diff))
+        spread = 1.4826 * float(np.median(dev))
+        np.maximum(out, dev / max(spread, 1e-9), out=out)
     if n == 0:
         return np.zeros((1, 1)), 1, 0
     return out, factor, n

@@ -338,7 +338,6 @@ def _smoothing_note(results) -> str:
     return f"edge profiles smoothed over {where} px, chosen afresh at each start: wider {why}"
 
 
-
 def _run_record(run: TrackRun, source, rate, results, settings: TrackSettings) -> dict:
     good = [r for r in results if r.ok]
     return {
