@@ -47,6 +47,33 @@ def sample_lines(image: np.ndarray, starts, directions, offsets) -> np.ndarray:
                      borderValue=float("nan"))
 
 
+def sample_strips(image: np.ndarray, starts, directions, offsets, shifts) -> np.ndarray:
+    """Like :func:`sample_lines`, each line averaged with parallel copies of it.
+
+    Parameters
+    ----------
+    image : (rows, cols) float32 ndarray
+    starts, directions : (M,) complex ndarray
+        Line origins and unit directions, px, y up.
+    offsets : (P,) ndarray
+        Positions along each line, px.
+    shifts : (M, K) ndarray
+        Where each line's K copies lie, px across the line (counter-clockwise
+        from ``directions`` positive is the other way: along ``-1j·direction``,
+        which is the tube's tangent when ``directions`` are its left normals).
+
+    Returns
+    -------
+    (M, P) float32 ndarray
+        The mean of the K copies' samples; NaN where any lies outside the image.
+    """
+    m, k = shifts.shape
+    along = -1j * directions[:, None] * shifts
+    lines = sample_lines(image, (starts[:, None] + along).ravel(),
+                         np.repeat(directions, k), offsets)
+    return lines.reshape(m, k, -1).mean(axis=1)
+
+
 @dataclass(frozen=True)
 class Edges:
     """Edge pairs found on a set of normal profiles.

@@ -55,6 +55,7 @@ from .joints import (
 )
 from .profiles import gradient_noise
 from .refine import (
+    STRIP_LINES,
     Refined,
     TubeLook,
     edges_at,
@@ -88,6 +89,13 @@ WIDTH_GUESSES = (1.0, 0.6, 0.36)
 #: scenes lost 21 frames (edge-to-noise 1.8–1.9); with these, none.
 EDGE_SCALES = (0.8, 1.2, 1.6, 2.4)
 SNR_TARGET = 5.0
+#: Roughness weight of the first fits from the skeleton, which also measure the
+#: base tangent. There the scatter of the edge midpoints about the curve is
+#: mostly the skeleton's misfit, which averaging strips of lines does not
+#: lower: 0.1 for single-line profiles, divided by the strips' lines to undo
+#: their lower noise reference (:data:`pipeline.refine.NOISE_REF_PX`). At 0.1,
+#: a blurred MJPG scene lost its first frame (the fit bent 8 px off at the base).
+SKELETON_SMOOTHING = 0.1 / STRIP_LINES
 
 
 @dataclass(frozen=True)
@@ -264,7 +272,8 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
         # would carry on as a curl and so never find the end
         wide_tip = None if r.tip_found else 2.0 * look.mean_half_width
         r = refine(image, r.curve, look, iterations=8, width_tol=width_tol, free_base=True,
-                   smoothing=0.1, tip_window=wide_tip, tol_px=tol, tip_stiffness=0.0)
+                   smoothing=SKELETON_SMOOTHING, tip_window=wide_tip, tol_px=tol,
+                   tip_stiffness=0.0)
         look = replace(look, half_width=_learn_widths(r, 9, look.mean_half_width),
                        strength=r.strength)
     cut = None if r.tip_found else _cut_to_edges(r, look.mean_half_width)

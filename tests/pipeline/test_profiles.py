@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 from scipy.special import erf
 
-from pipeline.profiles import edge_pairs, end_edge, gradient_noise, sample_lines
+from pipeline.profiles import edge_pairs, end_edge, gradient_noise, sample_lines, sample_strips
 
 
 def _profiles(centres, half_widths, polarity=-1, step=0.5, half=40.0, noise=0.0, seed=0,
@@ -90,3 +90,20 @@ def test_gradient_noise_is_the_spread_of_the_edge_filter_on_white_noise(smooth):
     assert gradient_noise(img, smooth) == pytest.approx(expected, rel=0.1)
     img[:5, :5] = np.nan  # outside a crop: left out
     assert np.isfinite(gradient_noise(img, smooth))
+
+
+def test_a_strip_is_the_mean_of_its_parallel_lines():
+    rng = np.random.default_rng(3)
+    img = rng.random((60, 80)).astype(np.float32)
+    starts = np.array([30 - 20j, 41.5 - 33.2j, 1.0 - 1.0j])
+    normals = np.exp(1j * np.array([0.3, 2.0, np.pi / 2]))
+    offsets = np.arange(-5.0, 5.5, 0.5)
+    shifts = np.array([[-1.0, 0.0, 1.0], [-0.5, 0.0, 0.7], [0.0, 0.0, 0.0]])
+    got = sample_strips(img, starts, normals, offsets, shifts)
+    tangents = -1j * normals  # the lines' copies lie along the tube
+    want = np.mean([sample_lines(img, starts + shifts[:, k] * tangents, normals, offsets)
+                    for k in range(3)], axis=0)
+    assert got.shape == (3, offsets.size)
+    assert np.allclose(got, want, equal_nan=True)
+    # a copy outside the image makes that sample NaN, as for a single line
+    assert np.isnan(got[2]).any() and not np.isnan(got[0]).any()

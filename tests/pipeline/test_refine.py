@@ -3,7 +3,10 @@ import pytest
 
 from pipeline.centreline import Curve, evaluate, fit_to_polyline, make_basis, n_grid_for
 from pipeline.refine import (
+    STRIP_HALF_PX,
+    STRIP_LINES,
     TubeLook,
+    _strip_shifts,
     contact_mask,
     locate_base,
     refine,
@@ -77,6 +80,30 @@ def test_locate_base_finds_where_the_tube_leaves_a_narrower_pipette():
     found = locate_base(img, moved, look)
     assert abs(found.base - BASE) < 1.0
     assert abs(found.length - 450.0) < 1.0
+
+
+def test_locate_base_is_not_misled_by_a_pipette_width_learnt_at_the_start():
+    """A curve running 20 px on into the pipette learns, over its first stretch, a
+    width between the pipette's and the tube's; the base is still found."""
+    img = tube_image(SHAPE, BASE, 0.0, 450.0, 0.0, 16.0, pipette_half_width=8.0)
+    truth = _truth(0.0)
+    look = TubeLook(-1, np.r_[11.0, np.full(8, 16.0)], 0.05)
+    into_pipette = Curve(truth.base - 20.0, 0.0, truth.length + 20.0, truth.coef)
+    found = locate_base(img, into_pipette, look)
+    assert abs(found.base - BASE) < 1.0
+    assert abs(found.length - 450.0) < 1.0
+
+
+def test_strips_shorten_at_the_ends_of_the_tube():
+    s = np.array([0.0, 0.4, 5.0, 97.5, 98.0, 100.0])
+    shifts = _strip_shifts(s, 100.0)
+    assert shifts.shape == (6, STRIP_LINES)
+    assert np.allclose(shifts[2], np.linspace(-STRIP_HALF_PX, STRIP_HALF_PX, STRIP_LINES))
+    # never behind the base, nor within 2 px of the end face
+    assert (s[:, None] + shifts >= 0).all()
+    assert (s[:, None] + shifts <= np.maximum(98.0, s)[:, None]).all()
+    assert np.allclose(shifts[0], [0.0, 0.0, STRIP_HALF_PX])
+    assert np.allclose(shifts[4], [-STRIP_HALF_PX, 0.0, 0.0])
 
 
 def test_self_contact_is_seen_only_when_the_tube_meets_itself():
