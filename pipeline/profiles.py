@@ -58,9 +58,8 @@ def sample_strips(image: np.ndarray, starts, directions, offsets, shifts) -> np.
     offsets : (P,) ndarray
         Positions along each line, px.
     shifts : (M, K) ndarray
-        Where each line's K copies lie, px across the line (counter-clockwise
-        from ``directions`` positive is the other way: along ``-1j·direction``,
-        which is the tube's tangent when ``directions`` are its left normals).
+        Where each line's K copies lie, px, measured along ``-1j·direction``
+        (the tube's tangent when ``directions`` are its left normals).
 
     Returns
     -------
