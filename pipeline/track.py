@@ -89,13 +89,17 @@ WIDTH_GUESSES = (1.0, 0.6, 0.36)
 #: scenes lost 21 frames (edge-to-noise 1.8–1.9); with these, none.
 EDGE_SCALES = (0.8, 1.2, 1.6, 2.4)
 SNR_TARGET = 5.0
-#: Roughness weight of the first fits from the skeleton, which also measure the
-#: base tangent. There the scatter of the edge midpoints about the curve is
-#: mostly the skeleton's misfit, which averaging strips of lines does not
-#: lower: 0.1 for single-line profiles, divided by the strips' lines to undo
-#: their lower noise reference (:data:`pipeline.refine.NOISE_REF_PX`). At 0.1,
-#: a blurred MJPG scene lost its first frame (the fit bent 8 px off at the base).
-SKELETON_SMOOTHING = 0.1 / STRIP_LINES
+#: Roughness weight of the fits that measure the base tangent when the tracker
+#: starts: strong, so that φ(0) follows the whole tube rather than the few
+#: profiles by the base.
+BASE_SMOOTHING = 0.1
+#: The same for the first of those fits, from the skeleton. There the scatter of
+#: the edge midpoints about the curve is mostly the skeleton's misfit, which
+#: averaging strips of lines does not lower: divided by the strips' lines to
+#: undo their lower noise reference (:data:`pipeline.refine.NOISE_REF_PX`). At
+#: the full weight, a blurred MJPG scene lost its first frame (the fit bent 8 px
+#: off at the base).
+SKELETON_SMOOTHING = BASE_SMOOTHING / STRIP_LINES
 
 
 @dataclass(frozen=True)
@@ -282,7 +286,8 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
         # of the tip (its mask broke up there), and the tube goes on beyond
         cut = _run_on(image, r, look, tol)
     if cut is not None:
-        r = refine(image, cut, look, iterations=8, free_base=True, smoothing=0.1,
+        r = refine(image, cut, look, iterations=8, free_base=True,
+                   smoothing=BASE_SMOOTHING,
                    tip_window=2.0 * look.mean_half_width, tol_px=tol, tip_stiffness=0.0)
     if base_hint is None:
         # the skeleton may run on into a faint pipette that stops short of the
@@ -292,7 +297,8 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
         hw0 = float(look.half_width[0])
         reach = max(4.0 * hw0, _edge_gap(r) + 2.0 * hw0)
         r = replace(r, curve=locate_base(image, r.curve, look, reach=reach))
-    r = refine(image, r.curve, look, iterations=6, free_base=True, smoothing=0.1, tol_px=tol)
+    r = refine(image, r.curve, look, iterations=6, free_base=True, smoothing=BASE_SMOOTHING,
+               tol_px=tol)
     r = refine(image, r.curve, look, iterations=4, tol_px=tol)
     if joints is None:
         # not given: the sections most often differ in their outer width, and a
@@ -308,7 +314,7 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
         if (n_coef, tuple(joints)) != (r.curve.coef.size, r.curve.joints):
             # the base tangent again, as above, on the steadier spline
             r = refine(image, rewritten(r.curve, joints, n_coef), look, iterations=6,
-                       free_base=True, smoothing=0.1, tol_px=tol)
+                       free_base=True, smoothing=BASE_SMOOTHING, tol_px=tol)
             r = refine(image, r.curve, look, iterations=4, tol_px=tol)
     return r, look, det.base_source
 
@@ -537,6 +543,10 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
         step = abs(r.curve.length - last_length)
         return _good(r, look) and step <= MAX_LENGTH_STEP * last_length
 
+    def rank(r: Refined) -> float:
+        # of several fits, the best scored that passes the checks
+        return _score(r) * (1.0 if accept(r) else 0.1)
+
     crossing = self_contact(pred, hw)
     # fast: refine the prediction inside the region it can occupy
     # the crop must hold where the tube can have moved: twice the last step's
@@ -568,7 +578,7 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
             cands.append(refine(image, start, look, window=1.5 * hw, iterations=10,
                                 avoid_contact=crossing or self_contact(start, hw),
                                 tol_px=tol))
-        r = max(cands, key=lambda c: _score(c) * (1.0 if accept(c) else 0.1))
+        r = max(cands, key=rank)
         stage = "wide"
         work = 1.0
         # the frame after a start (no velocity yet) also gets a fresh detection
@@ -577,8 +587,7 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
         # sample 7: 127° where the tube bent −18°, accepted; found afresh: −18.6°)
         if (not accept(r) or len(history) < 2) and not crossing:
             cand = _redetect(image, history[-1], look, settings)
-            if cand is not None and _score(cand) * (1.0 if accept(cand) else 0.1) > \
-                    _score(r) * (1.0 if accept(r) else 0.1):
+            if cand is not None and rank(cand) > rank(r):
                 r = cand
             stage = "redetect"
     elif len(history) < 2 and not crossing and _moved(r.curve, history[-1]) > hw:
