@@ -61,6 +61,7 @@ from .refine import (
     edges_at,
     locate_base,
     refine,
+    section_ratio,
     self_contact,
     widths_at,
 )
@@ -178,6 +179,9 @@ class FrameTrack:
     smooth_px : float
         The edge profiles' smoothing chosen (:func:`edge_scale`), px, on
         frames that (re)started the tracker; NaN on the others.
+    crossing : bool
+        The predicted tube touched or crossed itself, so the profiles near
+        the contact were left out.
     """
 
     frame: int
@@ -189,6 +193,7 @@ class FrameTrack:
     work_fraction: float = 1.0
     base_source: str = ""
     smooth_px: float = float("nan")
+    crossing: bool = False
 
     @property
     def ok(self) -> bool:
@@ -478,11 +483,13 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
     known = None if joints is None else tuple(float(j) for j in joints)
     given = known is not None
     seen: tuple[float, ...] = ()  # joints seen as width steps: kept by the kink search
+    # (joints, last section's curvature over the one before's) when last seen whole
+    tip_ratio: tuple[tuple[float, ...], float] | None = None
     for index, frame in enumerate(frames):
         det = first_detection if index == 0 else None
         search = bool(history) and abs(history[-1].coef[-1]) >= search_from
         result = _track_one(index, frame, look, history, held_base, base_end, det, settings,
-                            known, seen if search else None)
+                            known, seen if search else None, tip_ratio)
         if isinstance(result, tuple):  # (re)initialised: a new look, a new history
             result, look = result
             history = []
@@ -505,6 +512,9 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
         if result.ok:
             history = (history + [result.curve])[-2:]
             lost_run = 0
+            if not result.crossing:
+                ratio = section_ratio(result.curve)
+                tip_ratio = None if ratio is None else (result.curve.joints, ratio)
             # the pipette holds the base still: a restart finds the tube from the
             # same base, so the ends cannot swap (which would flip the angle's sign)
             held_base = base_hint if base_hint is not None else _base_col_row(result.curve)
@@ -519,7 +529,7 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
 
 
 def _track_one(index, frame, look, history, base_hint, base_end, detection, settings,
-               known, search_keep):
+               known, search_keep, tip_ratio=None):
     if frame.ndim != 2:
         raise ValueError(f"frame {index} is not a greyscale 2-D array: shape {frame.shape}")
     if look is None or not history:
@@ -548,6 +558,8 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
         return _score(r) * (1.0 if accept(r) else 0.1)
 
     crossing = self_contact(pred, hw)
+    # a section the crossing hides keeps its curvature in step with the one before
+    held = tip_ratio[1] if tip_ratio is not None and tip_ratio[0] == pred.joints else None
     # fast: refine the prediction inside the region it can occupy
     # the crop must hold where the tube can have moved: twice the last step's
     # tip motion; a fit that reaches the crop's edge anyway is redone on the frame
@@ -564,7 +576,7 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
     rounds = settings.rounds if len(history) >= 2 else settings.first_rounds
     tol = settings.tol_px
     r = refine(crop, pred, look, origin=(c0, r0), iterations=rounds, avoid_contact=crossing,
-               tol_px=tol)
+               tol_px=tol, tip_ratio=held)
     stage = "crossing" if crossing else "fast"
     work = crop.size / frame.size
     whole = (r0, r1, c0, c1) == (0, frame.shape[0], 0, frame.shape[1])
@@ -577,7 +589,7 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
         for start in ((pred,) if pred is history[-1] else (pred, history[-1])):
             cands.append(refine(image, start, look, window=1.5 * hw, iterations=10,
                                 avoid_contact=crossing or self_contact(start, hw),
-                                tol_px=tol))
+                                tol_px=tol, tip_ratio=held))
         r = max(cands, key=rank)
         stage = "wide"
         work = 1.0
@@ -606,7 +618,8 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
                   else "lost: edges not found along the tube" if r.valid_fraction < MIN_VALID
                   else "lost: tip not found" if not r.tip_found
                   else "lost: edges do not fit a smooth tube")
-        return FrameTrack(index, reason, None, stage, r.residual_px, r.valid_fraction, work)
+        return FrameTrack(index, reason, None, stage, r.residual_px, r.valid_fraction, work,
+                          crossing=crossing)
     if search_keep is not None:
         # where the tube kinks away from the fit, a section joint: refit with a
         # triple knot there (kept only if that fit passes the same checks)
@@ -641,8 +654,9 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
     jump = abs(r.curve.coef[-1] - history[-1].coef[-1])
     if jump > np.pi:
         return FrameTrack(index, "lost: bend angle jumped by about a turn", None, stage,
-                          r.residual_px, r.valid_fraction, work)
-    return FrameTrack(index, "ok", r.curve, stage, r.residual_px, r.valid_fraction, work)
+                          r.residual_px, r.valid_fraction, work, crossing=crossing)
+    return FrameTrack(index, "ok", r.curve, stage, r.residual_px, r.valid_fraction, work,
+                      crossing=crossing)
 
 
 def _redetect(image, prev: Curve, look: TubeLook, settings: TrackSettings) -> Refined | None:
