@@ -12,6 +12,7 @@ where the tube crosses itself: such profiles are dropped by their width.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import lru_cache
 
 import numpy as np
 from scipy.interpolate import BSpline
@@ -376,12 +377,18 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
 def _section_turns(curve: Curve):
     """Rows T with ``T @ curve.coef`` the turns (rad) of the jointed curve's
     second-to-last and last sections, and those sections' lengths (fractions)."""
-    joints = curve.joints
+    return _turns_of(curve.coef.size, curve.joints)
+
+
+@lru_cache(maxsize=32)
+def _turns_of(n_coef: int, joints: tuple[float, ...]):
     ends = np.array([joints[-2] if len(joints) > 1 else 0.0, joints[-1], 1.0])
     # φ − φ(0) is the spline without its first function (whose coefficient is 0)
-    values = BSpline.design_matrix(ends, knot_vector(curve.coef.size, joints), 3)
-    values = values.toarray()[:, 1:]
-    return np.diff(values, axis=0), np.diff(ends)
+    values = BSpline.design_matrix(ends, knot_vector(n_coef, joints), 3).toarray()[:, 1:]
+    turns, spans = np.diff(values, axis=0), np.diff(ends)
+    for arr in (turns, spans):
+        arr.flags.writeable = False
+    return turns, spans
 
 
 def section_ratio(curve: Curve) -> float | None:

@@ -10,7 +10,10 @@ Per frame, only the work the frame needs (cheapest first):
 2. **crossing** — when the predicted tube touches or crosses itself, profiles
    whose search range reaches the other layer are dropped before measuring,
    and the spline bridges the crossing from both sides; temporal continuity
-   (the prediction) keeps the order along the tube and the unwrapped angle;
+   (the prediction) keeps the order along the tube and the unwrapped angle.
+   A jointed tube's last section, when the crossing hides it, keeps its
+   curvature in the ratio to the section before that it had when last seen
+   whole (``tip_ratio`` of :func:`pipeline.refine.refine`);
 3. **wide** — if the fit fails its checks, search again with a wider window
    on the whole frame, from the prediction and from the previous frame;
 4. **redetect** — if that fails too, find the tube from scratch
