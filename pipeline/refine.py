@@ -264,7 +264,7 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
     tip_rough = tip_rows.T @ tip_rows
     hold = None
     if avoid_contact and tip_ratio is not None and curve.joints:
-        turns, spans = _section_turns(curve)
+        turns, spans = _section_turns(curve.coef.size, curve.joints)
         hold = turns[1] / spans[1] - tip_ratio * turns[0] / spans[0]
         in_last = u > curve.joints[-1]
     tip_found = False
@@ -374,14 +374,10 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
     return Refined(curve, u, width, edges.valid, rms, tip_found, it, strength, ~near, mids)
 
 
-def _section_turns(curve: Curve):
-    """Rows T with ``T @ curve.coef`` the turns (rad) of the jointed curve's
-    second-to-last and last sections, and those sections' lengths (fractions)."""
-    return _turns_of(curve.coef.size, curve.joints)
-
-
 @lru_cache(maxsize=32)
-def _turns_of(n_coef: int, joints: tuple[float, ...]):
+def _section_turns(n_coef: int, joints: tuple[float, ...]):
+    """Rows T with ``T @ coef`` the turns (rad) of a jointed curve's
+    second-to-last and last sections, and those sections' lengths (fractions)."""
     ends = np.array([joints[-2] if len(joints) > 1 else 0.0, joints[-1], 1.0])
     # φ − φ(0) is the spline without its first function (whose coefficient is 0)
     values = BSpline.design_matrix(ends, knot_vector(n_coef, joints), 3).toarray()[:, 1:]
@@ -399,7 +395,7 @@ def section_ratio(curve: Curve) -> float | None:
     """
     if not curve.joints:
         return None
-    turns, spans = _section_turns(curve)
+    turns, spans = _section_turns(curve.coef.size, curve.joints)
     before, last = turns @ curve.coef
     if abs(before) < TIP_RATIO_MIN_TURN:
         return None
