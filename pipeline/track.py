@@ -259,8 +259,11 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
         return None
     hw = det.half_width
     length = float(np.abs(np.diff(det.path)).sum())
-    n_coef = spline_size(length, hw, joints or (), settings, known=False)
-    curve = fit_to_polyline(det.path, det.base_angle, n_coef=n_coef, joints=joints or ())
+    # found without the joints, whose kinks would follow the skeleton's hooks
+    # and spurs as readily as the tube (fluorescent sample 1 with its joints
+    # given: a wrong end, 47° off); they are put in once the tube is found
+    n_coef = spline_size(length, hw, (), settings, known=False)
+    curve = fit_to_polyline(det.path, det.base_angle, n_coef=n_coef)
     best = None
     for polarity in (-1, 1):
         for scale in WIDTH_GUESSES:
