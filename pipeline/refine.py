@@ -159,9 +159,14 @@ class Refined:
         return float(self.usable.mean()) if self.usable is not None else 1.0
 
 
+def profile_spacing(half_width: float) -> float:
+    """How far apart along the tube the refinement's normal profiles are, px."""
+    return float(np.clip(half_width / 3.0, 2.0, 12.0))
+
+
 def _profile_layout(curve: Curve, look: TubeLook, n_grid: int, window: float, width_tol: float):
     hw = look.mean_half_width
-    spacing = float(np.clip(hw / 3.0, 2.0, 12.0))
+    spacing = profile_spacing(hw)
     start = 0.25 * hw / curve.length
     # up to the end: a profile across a flat end still meets both side edges,
     # and one across a rounded end has the wrong width and is dropped
@@ -403,22 +408,25 @@ def section_ratio(curve: Curve) -> float | None:
 
 
 def widths_at(image: np.ndarray, curve: Curve, look: TubeLook, u: np.ndarray, *,
-              width_tol: float = 0.3) -> np.ndarray:
+              width_tol: float = 0.3, origin=(0.0, 0.0)) -> np.ndarray:
     """The tube's outer width measured across ``curve`` at fractions ``u`` of
     its length (any spacing, e.g. 1 px apart about a section joint), px; NaN
-    where no edge pair of a plausible width is found."""
-    edges = edges_at(image, curve, look, u, width_tol=width_tol)
+    where no edge pair of a plausible width is found. ``image`` may be a crop
+    whose top-left pixel is at ``origin`` (col, row) of the frame."""
+    edges = edges_at(image, curve, look, u, width_tol=width_tol, origin=origin)
     return np.where(edges.valid, edges.width, np.nan)
 
 
 def edges_at(image: np.ndarray, curve: Curve, look: TubeLook, u: np.ndarray, *,
-             width_tol: float = 0.3) -> Edges:
+             width_tol: float = 0.3, origin=(0.0, 0.0)) -> Edges:
     """The tube's edge pairs across ``curve`` at fractions ``u`` of its length
-    (offsets from the curve, px), as ``look`` finds them."""
+    (offsets from the curve, px), as ``look`` finds them; ``image`` may be a
+    crop whose top-left pixel is at ``origin`` (col, row) of the frame."""
     u = np.asarray(u, dtype=float)
     basis = basis_of(curve)
     smp = evaluate(curve, basis)
     z = np.interp(u, basis.u, smp.z.real) + 1j * np.interp(u, basis.u, smp.z.imag)
+    z = z - complex(origin[0], -origin[1])  # full frame → crop, y up
     normal = 1j * np.exp(1j * np.interp(u, basis.u, smp.phi))
     hw = look.mean_half_width
     window = 0.3 * hw

@@ -21,9 +21,12 @@ Per frame, only the work the frame needs (cheapest first):
 
 Section joints (where the walls change, so the curvature steps) are given by
 the sample, or found in the frames (:mod:`pipeline.joints`): as steps in the
-tube's outer width when the tracker starts, and as kinks in its shape each
-time the bend has grown by a quarter. A joint gets a triple knot in the
-spline, and once the joints are known the spline between them is coarser
+tube's outer width, on the first frame and then in the mean width over the
+frames so far (looked at after 2, 3, 4, 6, 8, … of the first
+:data:`RECORD_FRAMES`), which shows steps too faint for one frame and
+places them to a pixel; and as kinks in its shape each time the bend has
+grown by a quarter. A joint gets a triple knot in the spline, and once the
+joints are known the spline between them is coarser
 (:attr:`TrackSettings.jointed_widths_per_coef`).
 
 A frame that none of these can measure keeps NaN measurements and a status
@@ -48,8 +51,10 @@ from .centreline import (
 )
 from .joints import (
     MAX_SPACING_F,
+    WidthRecord,
     find_joints,
     place_steps,
+    recorded_steps,
     rewritten,
     same_joints,
     spacing_f,
@@ -63,6 +68,7 @@ from .refine import (
     TubeLook,
     edges_at,
     locate_base,
+    profile_spacing,
     refine,
     section_ratio,
     self_contact,
@@ -74,6 +80,10 @@ from .segment import detect
 MIN_VALID = 0.7
 #: ... of the profiles not dropped because the tube crosses itself there.
 MIN_COVERAGE = 0.3
+#: Frames on which the tube's width along its length is recorded, when the
+#: joints are looked for in the frames (:class:`pipeline.joints.WidthRecord`):
+#: by then the record's scatter is a sixth of one frame's.
+RECORD_FRAMES = 32
 #: Largest accepted change of the tube's length from one frame to the next.
 MAX_LENGTH_STEP = 0.08
 #: Consecutive lost frames after which the tracker starts from scratch.
@@ -488,19 +498,20 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
     search_from = np.radians(JOINT_CHECK_DEG) if joints is None else np.inf
     known = None if joints is None else tuple(float(j) for j in joints)
     given = known is not None
-    seen: tuple[float, ...] = ()  # joints seen as width steps: kept by the kink search
+    # the tube's width along its length over the frames, where (joints not
+    # given) the joints are looked for as width steps; those it has shown are
+    # kept by the kink search
+    widths = None if given else WidthRecord()
     # (joints, last section's curvature over the one before's) when last seen whole
     tip_ratio: tuple[tuple[float, ...], float] | None = None
     for index, frame in enumerate(frames):
         det = first_detection if index == 0 else None
         search = bool(history) and abs(history[-1].coef[-1]) >= search_from
         result = _track_one(index, frame, look, history, held_base, base_end, det, settings,
-                            known, seen if search else None, tip_ratio)
+                            known, search, tip_ratio, widths)
         if isinstance(result, tuple):  # (re)initialised: a new look, a new history
             result, look = result
             history = []
-            if not given and result.ok and not seen:
-                seen = result.curve.joints
             if base_hint is None and held_base is not None and result.base_source:
                 # the restart was given the base found before, not the user's --base
                 result = replace(result, base_source="kept from an earlier frame")
@@ -535,7 +546,7 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
 
 
 def _track_one(index, frame, look, history, base_hint, base_end, detection, settings,
-               known, search_keep, tip_ratio=None):
+               known, search=False, tip_ratio=None, widths: WidthRecord | None = None):
     if frame.ndim != 2:
         raise ValueError(f"frame {index} is not a greyscale 2-D array: shape {frame.shape}")
     if look is None or not history:
@@ -546,6 +557,13 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
             return FrameTrack(index, "no tube found", None, "")
         r, look, source = init
         status = "ok" if _good(r, look) else "tube found but its edges do not fit"
+        if widths is not None and status == "ok":
+            if widths.u.size == 0:
+                widths.start(r.curve.length)
+            if widths.frames < RECORD_FRAMES:
+                widths.add(widths_at(image, r.curve, look, widths.u))
+            if not widths.joints:
+                widths.joints = r.curve.joints
         return (FrameTrack(index, status, r.curve if status == "ok" else None, "init",
                            r.residual_px, r.valid_fraction, base_source=source,
                            smooth_px=look.smooth_px), look)
@@ -626,7 +644,15 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
                   else "lost: edges do not fit a smooth tube")
         return FrameTrack(index, reason, None, stage, r.residual_px, r.valid_fraction, work,
                           crossing=crossing)
-    if search_keep is not None:
+    if widths is not None and widths.frames < RECORD_FRAMES and not crossing:
+        # (not where the tube crosses itself: a width across both layers)
+        # (on the crop, when the fit needed no more: it holds the tube)
+        img, at = (image, (0, 0)) if image is not None else (crop, (c0, r0))
+        widths.add(widths_at(img, r.curve, look, widths.u, origin=at))
+        if _due(widths.frames):
+            r = _width_joints(img, at, r, look, widths, settings, accept, crossing)
+    if search:
+        search_keep = widths.joints if widths is not None else ()
         # where the tube kinks away from the fit, a section joint: refit with a
         # triple knot there (kept only if that fit passes the same checks)
         # (afresh on every look: the more the tube bends, the clearer its kinks)
@@ -663,6 +689,47 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
                           r.residual_px, r.valid_fraction, work, crossing=crossing)
     return FrameTrack(index, "ok", r.curve, stage, r.residual_px, r.valid_fraction, work,
                       crossing=crossing)
+
+
+def _due(frames: int) -> bool:
+    """Whether the width record is looked at for steps after ``frames``
+    frames: at 2, 3, 4, 6, 8, 12, 16, 24, 32, … (each look's scatter about
+    1.2 times less than the one before's, at a few milliseconds a look)."""
+    if frames < 2:
+        return False
+    for base in (1, 3):
+        n, rem = divmod(frames, base)
+        if rem == 0 and n & (n - 1) == 0:
+            return True
+    return False
+
+
+def _width_joints(image, origin, r: Refined, look: TubeLook, widths: WidthRecord,
+                  settings: TrackSettings, accept, crossing: bool) -> Refined:
+    """``r`` refitted with the joints the width record shows (new ones, or
+    ones it places more than 1.5 px from where they are, or no longer shows),
+    when that fit passes ``accept``; else ``r``. ``image``: the frame, or a
+    crop of it holding the tube, whose top-left pixel is at ``origin``."""
+    hw, length = look.mean_half_width, r.curve.length
+    width_u = 2.0 * hw / length
+    # the record holds every frame the earlier looks had: what it shows now
+    # replaces what they showed
+    steps = list(recorded_steps(widths, hw, length, profile_spacing(hw)))
+    # and the kinks found in the shape, unless a width step is one
+    kinks = [j for j in r.curve.joints
+             if j not in widths.joints and all(abs(j - k) > width_u for k in steps)]
+    joints = tuple(sorted(steps + kinks))
+    # (a joint is placed to a pixel, and the record is a pixel apart: moving it
+    # by that is no news)
+    if same_joints(joints, r.curve.joints, 1.5 / length):
+        return r
+    n_coef = spline_size(length, hw, joints, settings, known=not kinks)
+    cand = refine(image, rewritten(r.curve, joints, n_coef), look, origin=origin,
+                  iterations=10, avoid_contact=crossing, tol_px=settings.tol_px)
+    if not accept(cand):
+        return r
+    widths.joints = tuple(steps)
+    return cand
 
 
 def _redetect(image, prev: Curve, look: TubeLook, settings: TrackSettings) -> Refined | None:

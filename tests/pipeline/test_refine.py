@@ -196,3 +196,8 @@ def test_widths_at_measures_the_outer_width_anywhere_along_the_tube(kappa):
         # off the tube (100 px beside it, on blank background) no width is found
         away = Curve(truth.base + 100j, truth.base_angle, truth.length, truth.coef)
         assert np.isnan(widths_at(img, away, look, u)).all()
+    # on a crop holding the tube, placed by its origin: the same widths (to the
+    # float32 image's rounding of the sample positions)
+    r0, c0 = 100, 60
+    cropped = widths_at(img[r0:, c0:], truth, look, u, origin=(c0, r0))
+    assert np.allclose(cropped, width, atol=1e-4, rtol=0)
