@@ -215,6 +215,14 @@ def rewritten(curve: Curve, joints, n_coef: int | None = None) -> Curve:
     return Curve(curve.base, curve.base_angle, curve.length, coef, joints)
 
 
+def _width_scatter(w: np.ndarray) -> float:
+    """The scatter of widths measured along the tube, px: from their
+    differences (a step is one outlier there), robustly; at least 1e-3 px,
+    which keeps a noise-free render finite."""
+    d = np.diff(w)
+    return max(1.4826 * float(np.median(np.abs(d - np.median(d)))) / np.sqrt(2), 1e-3)
+
+
 def width_steps(u: np.ndarray, width: np.ndarray, half_width: float, length: float, *,
                 min_rel: float = MIN_WIDTH_STEP, min_z: float = MIN_WIDTH_Z,
                 max_joints: int = MAX_JOINTS) -> tuple[float, ...]:
@@ -250,10 +258,7 @@ def width_steps(u: np.ndarray, width: np.ndarray, half_width: float, length: flo
     u, w = np.asarray(u, float)[ok], np.asarray(width, float)[ok]
     if w.size < 20:
         return ()
-    # the widths' scatter from their differences (a step is one outlier there),
-    # robustly; 1e-3 px keeps a noise-free render finite
-    sigma = max(1.4826 * np.median(np.abs(np.diff(w) - np.median(np.diff(w)))) / np.sqrt(2),
-                1e-3)
+    sigma = _width_scatter(w)
     width_u = 2.0 * half_width / length
     reach = 2.0 * width_u
     # up to a width from the ends, the windows cut short there
@@ -303,6 +308,9 @@ class WidthRecord:
         Frames added.
     joints : tuple of float
         The joints seen as width steps so far (kept by the tracker).
+    resolved : bool
+        The record already tells every step that would be kept
+        (:func:`record_resolves`): the tracker measures no more frames.
     """
 
     u: np.ndarray = field(default_factory=lambda: np.zeros(0))
@@ -310,6 +318,7 @@ class WidthRecord:
     count: np.ndarray = field(default_factory=lambda: np.zeros(0))
     frames: int = 0
     joints: tuple[float, ...] = ()
+    resolved: bool = False
 
     def start(self, length_px: float, max_points: int = 1000) -> None:
         """Set the points 1 px apart on a tube ``length_px`` long (further
@@ -332,26 +341,48 @@ class WidthRecord:
         return np.where(enough, self.total / np.maximum(self.count, 1.0), np.nan)
 
 
-def recorded_steps(record: WidthRecord, half_width: float, length: float,
-                   spacing_px: float) -> tuple[float, ...]:
-    """The joints a width record shows: found as steps (:func:`width_steps`)
-    in its mean over blocks ``spacing_px`` long (about the tracker's profile
-    spacing, on which :data:`MIN_WIDTH_Z` was measured: neighbouring points
-    a pixel apart share their noise), then placed on the mean itself
-    (:func:`place_steps`)."""
+def _record_blocks(record: WidthRecord, half_width: float, length: float, spacing_px: float):
+    """The record's mean (NaN over the last half-width: a rounded or blurred
+    end narrows the tube there on every frame alike, which the mean would
+    show as a step), and its means over blocks ``spacing_px`` long (the
+    tracker's profile spacing, the scale :data:`MIN_WIDTH_Z` was measured
+    on) with their centres."""
     mean = record.mean()
-    # not over the last half-width: a rounded or blurred end narrows the tube
-    # there on every frame alike, which the mean would show as a step
     mean[record.u > 1.0 - half_width / length] = np.nan
     k = max(int(round(spacing_px * record.u.size / length)), 1)
     n = (record.u.size // k) * k
     ok = np.isfinite(mean[:n]).reshape(-1, k)
     sums = np.where(ok, mean[:n].reshape(-1, k), 0.0).sum(axis=1)
     blocks = np.where(ok.any(axis=1), sums / np.maximum(ok.sum(axis=1), 1), np.nan)
-    coarse = width_steps(record.u[:n].reshape(-1, k).mean(axis=1), blocks, half_width, length)
+    return mean, record.u[:n].reshape(-1, k).mean(axis=1), blocks
+
+
+def recorded_steps(record: WidthRecord, half_width: float, length: float,
+                   spacing_px: float) -> tuple[float, ...]:
+    """The joints a width record shows: found as steps (:func:`width_steps`)
+    in its means over blocks ``spacing_px`` long (the tracker's profile
+    spacing), then placed on the mean itself (:func:`place_steps`)."""
+    mean, u_blocks, blocks = _record_blocks(record, half_width, length, spacing_px)
+    coarse = width_steps(u_blocks, blocks, half_width, length)
     if not coarse:
         return ()
     return place_steps(record.u, mean, coarse, half_width, length)
+
+
+def record_resolves(record: WidthRecord, half_width: float, length: float, spacing_px: float,
+                    *, min_rel: float = MIN_WIDTH_STEP, min_z: float = MIN_WIDTH_Z) -> bool:
+    """Whether the record already tells every width step that
+    :func:`width_steps` would keep: a step of ``min_rel`` stands ``min_z``
+    standard errors out of its scatter. More frames then show nothing new
+    (a smaller step is not kept however clear), and need not be measured."""
+    _, u_blocks, blocks = _record_blocks(record, half_width, length, spacing_px)
+    w = blocks[np.isfinite(blocks)]
+    if w.size < 20:
+        return False
+    # as width_steps: windows of two widths on either side
+    per_side = max(int(4.0 * half_width / (length / u_blocks.size)), 1)
+    se = 1.25 * _width_scatter(w) * np.sqrt(2.0 / per_side)
+    return bool(min_rel * np.median(w) >= min_z * se)
 
 
 def step_windows(coarse, half_width: float, length: float, spacing_px: float = 1.0):

@@ -54,6 +54,7 @@ from .joints import (
     WidthRecord,
     find_joints,
     place_steps,
+    record_resolves,
     recorded_steps,
     rewritten,
     same_joints,
@@ -560,7 +561,7 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
         if widths is not None and status == "ok":
             if widths.u.size == 0:
                 widths.start(r.curve.length)
-            if widths.frames < RECORD_FRAMES:
+            if widths.frames < RECORD_FRAMES and not widths.resolved:
                 widths.add(widths_at(image, r.curve, look, widths.u))
             if not widths.joints:
                 widths.joints = r.curve.joints
@@ -644,7 +645,8 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
                   else "lost: edges do not fit a smooth tube")
         return FrameTrack(index, reason, None, stage, r.residual_px, r.valid_fraction, work,
                           crossing=crossing)
-    if widths is not None and widths.frames < RECORD_FRAMES and not crossing:
+    if (widths is not None and widths.frames < RECORD_FRAMES and not widths.resolved
+            and not crossing):
         # (not where the tube crosses itself: a width across both layers)
         # (on the crop, when the fit needed no more: it holds the tube)
         img, at = (image, (0, 0)) if image is not None else (crop, (c0, r0))
@@ -709,7 +711,11 @@ def _width_joints(image, origin, r: Refined, look: TubeLook, widths: WidthRecord
     """``r`` refitted with the joints the width record shows (new ones, or
     ones it places more than 1.5 px from where they are, or no longer shows),
     when that fit passes ``accept``; else ``r``. ``image``: the frame, or a
-    crop of it holding the tube, whose top-left pixel is at ``origin``."""
+    crop of it holding the tube, whose top-left pixel is at ``origin``.
+
+    Once the curve has the record's joints and the record tells every step
+    that would be kept, it is marked resolved: more frames would show nothing
+    new (a clean scene: after two frames)."""
     hw, length = look.mean_half_width, r.curve.length
     width_u = 2.0 * hw / length
     # the record holds every frame the earlier looks had: what it shows now
@@ -722,6 +728,7 @@ def _width_joints(image, origin, r: Refined, look: TubeLook, widths: WidthRecord
     # (a joint is placed to a pixel, and the record is a pixel apart: moving it
     # by that is no news)
     if same_joints(joints, r.curve.joints, 1.5 / length):
+        widths.resolved = record_resolves(widths, hw, length, profile_spacing(hw))
         return r
     n_coef = spline_size(length, hw, joints, settings, known=not kinks)
     cand = refine(image, rewritten(r.curve, joints, n_coef), look, origin=origin,
@@ -729,6 +736,7 @@ def _width_joints(image, origin, r: Refined, look: TubeLook, widths: WidthRecord
     if not accept(cand):
         return r
     widths.joints = tuple(steps)
+    widths.resolved = record_resolves(widths, hw, length, profile_spacing(hw))
     return cand
 
 
