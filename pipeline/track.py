@@ -23,9 +23,10 @@ Section joints (where the walls change, so the curvature steps) are given by
 the sample, or found in the frames (:mod:`pipeline.joints`): as steps in the
 tube's outer width, on the first frame and then in the mean width over the
 frames so far (looked at after 2, 3, 4, 6, 8, … of the first
-:data:`RECORD_FRAMES`), which shows steps too faint for one frame and
-places them to a pixel; and as kinks in its shape each time the bend has
-grown by a quarter. A joint gets a triple knot in the spline, and once the
+:data:`RECORD_FRAMES`, and measured no more once it would show any step
+worth keeping: on a clean scene, after two), which shows steps too faint
+for one frame and places them to a pixel or two; and as kinks in its shape
+each time the bend has grown by a quarter. A joint gets a triple knot in the spline, and once the
 joints are known the spline between them is coarser
 (:attr:`TrackSettings.jointed_widths_per_coef`).
 
