@@ -30,6 +30,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.stats import median_abs_deviation
 
 from .centreline import Curve, basis_of, evaluate, jacobian, make_basis
 
@@ -219,8 +220,7 @@ def _width_scatter(w: np.ndarray) -> float:
     """The scatter of widths measured along the tube, px: from their
     differences (a step is one outlier there), robustly; at least 1e-3 px,
     which keeps a noise-free render finite."""
-    d = np.diff(w)
-    return max(1.4826 * float(np.median(np.abs(d - np.median(d)))) / np.sqrt(2), 1e-3)
+    return max(float(median_abs_deviation(np.diff(w), scale="normal")) / np.sqrt(2), 1e-3)
 
 
 def width_steps(u: np.ndarray, width: np.ndarray, half_width: float, length: float, *,

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
+from scipy.stats import median_abs_deviation
 
 from .centreline import to_image
 
@@ -262,4 +263,4 @@ def gradient_noise(image: np.ndarray, smooth_px: float) -> float:
     values = grad[np.isfinite(grad)]
     if values.size == 0:
         return 0.0
-    return float(1.4826 * np.median(np.abs(values - np.median(values))))
+    return float(median_abs_deviation(values, scale="normal"))
