@@ -307,6 +307,13 @@ def _split_point(width: np.ndarray, trim: int = 0) -> tuple[int, float]:
 
 #: Base sources that a single frame cannot back up (see :mod:`pipeline.motion`).
 AMBIGUOUS_BASE = "skeleton end nearest the border"
+#: The base found where the structure meets the image border, no holder seen.
+BORDER_BASE = "image border (no pipette step seen)"
+#: Width of a holder (a clamp or a wide capillary the tube is pushed into)
+#: over the tube's, at least. A tube's own sections differ by at most 25 % in
+#: outer width (Table 1: 810 against 650 µm), so a step this large, with the
+#: wide part running out of the frame, is no section joint.
+HOLDER_RATIO = 1.5
 
 
 def detect(image: np.ndarray, *, base_hint=None, base_end=None) -> Detection | None:
@@ -381,7 +388,7 @@ def detect(image: np.ndarray, *, base_hint=None, base_end=None) -> Detection | N
                     return min(p[0], p[1], shape[0] - 1 - p[0], shape[1] - 1 - p[1])
                 if border_dist(path_rc[-1]) < border_dist(path_rc[0]):
                     path_rc, width = path_rc[::-1], width[::-1]
-    # base: the pipette is narrower than the tube; find the width step
+    # base: the pipette is narrower than the tube (a holder wider); find the width step
     split, ratio = _split_point(width, trim)
     if base_hint is not None:
         hint = np.array([base_hint[1], base_hint[0]], dtype=float) / f
@@ -389,6 +396,9 @@ def detect(image: np.ndarray, *, base_hint=None, base_end=None) -> Detection | N
         source = "given (--base)"
     elif ratio > 1.15 and split > min_pipette and _touches_border(path_rc[0], shape, margin):
         source = "pipette width step"
+    elif (ratio < 1 / HOLDER_RATIO and split > min_pipette
+          and _touches_border(path_rc[0], shape, margin)):
+        source = "holder width step (a holder wider than the tube)"
     elif ambiguous:
         split = 0
         source = AMBIGUOUS_BASE
@@ -397,7 +407,7 @@ def detect(image: np.ndarray, *, base_hint=None, base_end=None) -> Detection | N
         source = "the static end over the video"
     else:
         split = 0
-        source = "image border (no pipette step seen)"
+        source = BORDER_BASE
     tube = path_rc[split:]
     tube_width = width[split:]
     half_width = float(np.median(tube_width)) / 2

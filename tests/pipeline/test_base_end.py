@@ -95,6 +95,24 @@ def test_base_is_where_the_tube_leaves_a_blurred_pipette(tmp_path, look):
     assert err_px.max() < 1.5
 
 
+@pytest.mark.parametrize("look", ["opaque", "transmitted"])
+def test_base_is_where_the_tube_leaves_a_holder_wider_than_itself(tmp_path, look):
+    """A tube pushed into a capillary 2.2 times its width: the step at the
+    holder's end is the base, not the image border (which put the base 160 px
+    into the holder, and lost every frame)."""
+    folder = render_scene(default_scene(3, n_frames=4, seed=23, width=480, height=360,
+                                        base_angle_deg=30.0, look=look, pipette_ratio=2.2),
+                          tmp_path / "scene", fmt="png")
+    track_video(folder / "frames", tmp_path / "out",
+                um_per_px=json.loads((folder / "scene.json").read_text())["layout"]["um_per_px"])
+    errors, acc = score_folder(folder, tmp_path / "out")
+    assert acc.frames_lost == 0
+    assert errors["base_error_px"].max() < 1.0
+    assert acc.length_error_max_pct < 0.5
+    run = json.loads((tmp_path / "out" / "run.json").read_text())
+    assert run["base_source"].startswith("holder width step")
+
+
 SMALL_DIM = {
     "dim-6px-fluorescent": dict(sample=4, seed=1018, look="fluorescent", width=320, height=240,
                                 base_angle_deg=103.0),
