@@ -17,7 +17,15 @@ from functools import lru_cache
 import numpy as np
 from scipy.interpolate import BSpline
 
-from .centreline import Curve, basis_of, evaluate, jacobian, knot_vector
+from .centreline import (
+    Curve,
+    basis_of,
+    evaluate,
+    fit_to_polyline,
+    jacobian,
+    knot_vector,
+    resample,
+)
 from .profiles import Edges, edge_pairs, end_edge, sample_lines, sample_strips
 
 #: Each edge profile is the mean of this many parallel lines, spread over
@@ -517,7 +525,9 @@ def locate_base(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0,
     absent beyond the image border; along the base axis, profiles behind the
     base therefore find no edge pair of the tube's width and profiles after it
     do. The base is put at the change, to half a profile step, and the length
-    adjusted so that the tip stays where it is.
+    adjusted so that the tip stays where it is. Behind the base the profiles
+    lie along the base axis, past it along the curve; a base found ahead of the
+    curve's start cuts the curve there (a jointed curve is only shifted).
     """
     reach = 4.0 * float(look.half_width[0]) if reach is None else reach
     # the tube's width as learnt just past the search, not at the curve's start:
@@ -529,9 +539,18 @@ def locate_base(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0,
     axis = np.exp(1j * curve.base_angle)
     step = 0.5
     s = np.arange(-reach, min(reach, 0.5 * curve.length), step)
-    starts = curve.base + s * axis - shift
+    # behind the base along the base axis (the pipette's), past it along the
+    # curve: a long search (a pipette the first fit ran along) would otherwise
+    # leave the tube wherever the curve turns off that axis
+    basis = basis_of(curve)
+    smp = evaluate(curve, basis)
+    grid = basis.u * curve.length
+    ahead = np.clip(s, 0.0, None)
+    phi = np.where(s > 0, np.interp(ahead, grid, smp.phi), curve.base_angle)
+    starts = np.where(s > 0, np.interp(ahead, grid, smp.z.real)
+                      + 1j * np.interp(ahead, grid, smp.z.imag), curve.base + s * axis) - shift
     offsets = np.arange(-np.ceil(2 * hw), np.ceil(2 * hw) + 1, 0.5)
-    prof = sample_lines(image, starts, np.full(s.size, 1j * axis), offsets)
+    prof = sample_lines(image, starts, 1j * np.exp(1j * phi), offsets)
     edges = edge_pairs(prof, 0.5, hw, polarity=look.polarity, window=0.3 * hw,
                        smooth_px=look.smooth_px,
                        width_tol=0.15, min_strength=0.25 * look.strength)
@@ -556,5 +575,11 @@ def locate_base(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0,
         return curve
     best = int(k[np.argmin(sse)])
     s_base = 0.5 * (s[best - 1] + s[best])
-    return replace(curve, base=curve.base + s_base * axis,
-                   length=max(curve.length - s_base, 2.0))
+    if s_base <= 0 or curve.joints:
+        return replace(curve, base=curve.base + s_base * axis,
+                       length=max(curve.length - s_base, 2.0))
+    # forward: the curve from there on, its tangent there the base direction
+    arc, z = resample(curve, 0.5)
+    keep = arc >= s_base
+    return fit_to_polyline(z[keep], float(np.interp(s_base, grid, smp.phi)),
+                           n_coef=curve.coef.size)

@@ -76,7 +76,7 @@ from .refine import (
     self_contact,
     widths_at,
 )
-from .segment import detect
+from .segment import BORDER_BASE, detect
 
 #: Profiles that must hold a valid edge pair for a fit to be accepted.
 MIN_VALID = 0.7
@@ -269,6 +269,7 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
     det = detection or detect(image, base_hint=base_hint, base_end=base_end)
     if det is None:
         return None
+    source = det.base_source
     hw = det.half_width
     length = float(np.abs(np.diff(det.path)).sum())
     # found without the joints, whose kinks would follow the skeleton's hooks
@@ -319,7 +320,10 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
         # must reach past it
         hw0 = float(look.half_width[0])
         reach = max(4.0 * hw0, _edge_gap(r) + 2.0 * hw0)
+        start = r.curve.base
         r = replace(r, curve=locate_base(image, r.curve, look, reach=reach))
+        if source == BORDER_BASE and abs(r.curve.base - start) > 2.0 * hw0:
+            source = "where the tube's edges begin (the mask ran on into a pipette)"
     r = refine(image, r.curve, look, iterations=6, free_base=True, smoothing=BASE_SMOOTHING,
                tol_px=tol)
     r = refine(image, r.curve, look, iterations=4, tol_px=tol)
@@ -339,7 +343,7 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
             r = refine(image, rewritten(r.curve, joints, n_coef), look, iterations=6,
                        free_base=True, smoothing=BASE_SMOOTHING, tol_px=tol)
             r = refine(image, r.curve, look, iterations=4, tol_px=tol)
-    return r, look, det.base_source
+    return r, look, source
 
 
 def edge_scale(image: np.ndarray, curve: Curve, look: TubeLook) -> TubeLook:

@@ -1,7 +1,14 @@
 import numpy as np
 import pytest
 
-from pipeline.centreline import Curve, evaluate, fit_to_polyline, make_basis, n_grid_for
+from pipeline.centreline import (
+    Curve,
+    evaluate,
+    fit_to_polyline,
+    make_basis,
+    n_grid_for,
+    tip_point,
+)
 from pipeline.refine import (
     STRIP_HALF_PX,
     STRIP_LINES,
@@ -132,6 +139,28 @@ def test_locate_base_is_not_misled_by_a_pipette_width_learnt_at_the_start():
     found = locate_base(img, into_pipette, look)
     assert abs(found.base - BASE) < 1.0
     assert abs(found.length - 450.0) < 1.0
+
+
+def test_locate_base_follows_a_bent_tube_past_a_long_run_of_pipette():
+    """A pipette shown only by its two thin glass walls, as wide as the tube once
+    thresholded: the first fit ran 110 px along it from the image border. The
+    base search reaches past it, and must follow the curve there, not the
+    pipette's axis, which the bent tube leaves (it found no tube at all and
+    kept the base at the border: length +50 %)."""
+    kappa = 1 / 250
+    img = tube_image(SHAPE, BASE, 0.0, 450.0, kappa, 16.0)
+    rr, cc = np.mgrid[0:SHAPE[0], 0:SHAPE[1]]
+    rel = (cc - 1j * rr) - BASE
+    walls = (rel.real < 0) & (np.abs(np.abs(rel.imag) - 10.0) < 1.0)
+    img[walls] *= 0.75
+    z, _ = arc_axis(BASE, 0.0, 450.0, kappa)
+    along_pipette = fit_to_polyline(np.r_[BASE - np.arange(110.0, 0.0, -1.0), z], 0.0,
+                                    n_coef=16)
+    look = TubeLook(-1, np.full(9, 16.0), 0.05)
+    found = locate_base(img, along_pipette, look, reach=130.0)
+    assert abs(found.base - BASE) < 1.0
+    assert abs(found.length - 450.0) < 1.5
+    assert abs(tip_point(found) - z[-1]) < 1.0
 
 
 def test_strips_shorten_at_the_ends_of_the_tube():
