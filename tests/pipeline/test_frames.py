@@ -182,6 +182,26 @@ def test_sixteen_bit_png_and_single_tiff_keep_depth(tmp_path):
         np.testing.assert_array_equal(got, img)
 
 
+@pytest.mark.parametrize("compression", ["lzw", "zstd", "jpeg"])
+def test_compressed_tiff_stacks_are_read(tmp_path, compression):
+    # microscope cameras and OpenCV write compressed TIFFs (LZW by default):
+    # tifffile needs imagecodecs for those codecs
+    stack = np.stack([(255 * smooth(phase=k)).astype(np.uint8) for k in range(3)])
+    tifffile.imwrite(tmp_path / "c.tif", stack, compression=compression, photometric="minisblack")
+    reader, got = read_all(tmp_path / "c.tif")
+    assert len(got) == 3
+    tol = 3 if compression == "jpeg" else 0  # (JPEG is lossy)
+    np.testing.assert_allclose(np.stack(got).astype(int), stack.astype(int), atol=tol)
+
+
+def test_folder_of_lzw_tiffs_written_by_opencv_is_read(tmp_path):
+    frames = [ramp8(k=k) for k in range(3)]
+    for k, img in enumerate(frames):
+        cv2.imwrite(str(tmp_path / f"img{k + 1}.tif"), img)  # LZW-compressed
+    reader, got = read_all(tmp_path)
+    np.testing.assert_array_equal(np.stack(got), np.stack(frames))
+
+
 def test_float_tiff_is_passed_through(tmp_path):
     img = smooth(10, 11) * 3.0
     tifffile.imwrite(tmp_path / "f.tif", img.astype(np.float64))
