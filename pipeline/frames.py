@@ -283,7 +283,8 @@ def open_frames(source) -> FrameReader:
         A video OpenCV can read (.avi, .mp4, .mov, .mkv, ...); a folder of
         PNG/TIFF/JPEG/BMP images, taken in natural name order (``frame2``
         before ``frame10``; other files and hidden files are ignored); a TIFF
-        with one or more pages (read page by page); or one image file.
+        with one or more pages (read page by page; a hyperstack with
+        channels or z-slices at every time point is refused); or one image file.
 
     Returns
     -------
@@ -338,6 +339,7 @@ def _open_tiff(path: Path) -> FrameReader:
             count = len(tif.pages)  # walks the page directory only, no pixel data
             if not count:
                 raise FrameError(f"{path}: no frames (the TIFF holds no pages)")
+            _refuse_hyperstack(tif, path)
             first = _tiff_page(tif.pages[0], f"{path} (page 0)")
             fps = _tiff_fps(tif)
     except FrameError:
@@ -346,6 +348,25 @@ def _open_tiff(path: Path) -> FrameReader:
         raise FrameError(f"{path}: not a readable TIFF ({type(exc).__name__}: "
                          f"{_one_line(exc)})") from None
     return FrameReader(path, "tiff", count, fps, first)
+
+
+def _refuse_hyperstack(tif, path: Path) -> None:
+    """Refuse a stack whose pages are not all frames: a hyperstack (ImageJ or
+    OME, e.g. axes TCYX) with channels or z-slices at every time point has its
+    pages alternate between them, and tracking them in turn would mix unrelated
+    images. A stack along one axis is taken as frames, whatever its label:
+    ImageJ saves a time-lapse as slices unless told otherwise, and tifffile
+    labels a plain stack as channels."""
+    series = tif.series[0] if tif.series else None
+    sizes = dict(zip(getattr(series, "axes", ""), getattr(series, "shape", ()), strict=False))
+    stacked = {a: n for a, n in sizes.items() if a not in "YXS" and n > 1}
+    if len(stacked) > 1:
+        what = " x ".join(f"{n} {_AXIS_NAMES.get(a, a)}" for a, n in stacked.items())
+        raise FrameError(f"{path}: a hyperstack ({what}): save one image of the tube per "
+                         "time point as its own stack")
+
+
+_AXIS_NAMES = {"T": "times", "C": "channels", "Z": "z-slices", "Q": "images", "I": "images"}
 
 
 def _open_video(path: Path) -> FrameReader:

@@ -202,6 +202,22 @@ def test_folder_of_lzw_tiffs_written_by_opencv_is_read(tmp_path):
     np.testing.assert_array_equal(np.stack(got), np.stack(frames))
 
 
+def test_stack_along_one_axis_is_frames_whatever_its_label(tmp_path):
+    # tifffile labels a plain ImageJ stack as channels; ImageJ, as slices
+    stack = np.stack([ramp8(k=k) for k in range(4)])
+    tifffile.imwrite(tmp_path / "s.tif", stack, imagej=True)
+    reader, got = read_all(tmp_path / "s.tif")
+    np.testing.assert_array_equal(np.stack(got), stack)
+
+
+@pytest.mark.parametrize("axes", ["TCYX", "TZYX"])
+def test_hyperstack_is_refused_not_tracked_page_by_page(tmp_path, axes):
+    stack = np.stack([np.stack([ramp8(k=k), 255 - ramp8(k=k)]) for k in range(3)])
+    tifffile.imwrite(tmp_path / "h.tif", stack, imagej=True, metadata={"axes": axes})
+    with pytest.raises(FrameError, match=r"hyperstack \(3 times x 2 (channels|z-slices)\)"):
+        open_frames(tmp_path / "h.tif")
+
+
 def test_float_tiff_is_passed_through(tmp_path):
     img = smooth(10, 11) * 3.0
     tifffile.imwrite(tmp_path / "f.tif", img.astype(np.float64))
