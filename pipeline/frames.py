@@ -357,6 +357,10 @@ def _refuse_hyperstack(tif, path: Path) -> None:
     images. A stack along one axis is taken as frames, whatever its label:
     ImageJ saves a time-lapse as slices unless told otherwise, and tifffile
     labels a plain stack as channels."""
+    if not (tif.is_imagej or tif.is_ome):
+        # (only these label their axes; parsing another writer's series metadata
+        # can make tifffile log a warning about it)
+        return
     series = tif.series[0] if tif.series else None
     sizes = dict(zip(getattr(series, "axes", ""), getattr(series, "shape", ()), strict=False))
     stacked = {a: n for a, n in sizes.items() if a not in "YXS" and n > 1}
