@@ -16,6 +16,7 @@ from functools import lru_cache
 
 import numpy as np
 from scipy.interpolate import BSpline
+from scipy.stats import median_abs_deviation
 
 from .centreline import (
     Curve,
@@ -342,7 +343,7 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
             # noise, measured: second differences) also counts what the fit cannot
             # yet follow, which keeps a tip bridged over a crossing stiffer (over-
             # curl scene: max error 3.9° against 10.8°)
-            sig = 1.4826 * np.median(np.abs(delta[valid] - np.median(delta[valid])))
+            sig = median_abs_deviation(delta[valid], scale="normal")
             pen *= max(sig / NOISE_REF_PX, 1.0) ** 2
         rough = basis.roughness + tip_stiffness * tip_rough
         lhs[:k, :k] += pen * rough
