@@ -141,7 +141,7 @@ def _tiff_fps(tif) -> float | None:
             meta = dict(tif.imagej_metadata)
             if "fps" not in meta and meta.get("finterval"):
                 meta["fps"] = 1.0 / float(meta["finterval"])
-        elif tif.pages[0].is_shaped:
+        elif tif.pages[0].description.lstrip().startswith("{"):
             meta = json.loads(tif.pages[0].description)
     except (ValueError, TypeError, ZeroDivisionError, KeyError):
         return None  # metadata is a bonus: a malformed tag must not stop reading
@@ -533,9 +533,11 @@ def _write_tiff(frames, path: Path, fps: float, bit_depth: int) -> Path:
     with atomic_path(path) as tmp, tifffile.TiffWriter(tmp) as tif:
         for i, img in enumerate(_numbered(frames, path, bit_depth)):
             # one page per frame (contiguous=False) so readers can stream pages;
-            # the first page's JSON description carries the frame rate
-            tif.write(img, contiguous=False, compression="zlib",
-                      metadata={"fps": fps} if i == 0 else None)
+            # the first page's JSON description carries the frame rate. (Not as
+            # tifffile's shaped metadata: its shape would be the first page's
+            # alone, and tifffile warns about such a file on every read.)
+            tif.write(img, contiguous=False, compression="zlib", metadata=None,
+                      description=json.dumps({"fps": fps}) if i == 0 else None)
     return path
 
 

@@ -58,7 +58,9 @@ def test_tiff_round_trip_is_exact_and_keeps_fps(tmp_path, bit_depth, make, caplo
     out = write_frames(truth, tmp_path / "stack.tif", fps=12.5, bit_depth=bit_depth)
     with caplog.at_level("WARNING"):
         reader, got = read_all(out)
+        whole = tifffile.imread(out)  # other programs see one stack of all frames
     assert not caplog.records  # (tifffile logs what it finds wrong in a file)
+    np.testing.assert_array_equal(whole, truth)
     assert reader.kind == "tiff" and len(reader) == 7 and reader.fps == 12.5
     assert reader.frame_shape == (20, 30) and reader.dtype == truth.dtype
     np.testing.assert_array_equal(np.stack(got), truth)
