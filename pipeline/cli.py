@@ -307,12 +307,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--sample-frames", action="store_true",
                    help="regenerate all the committed scenes of sample_frames/")
     p.add_argument("--out", required=True, help="output folder")
-    p.add_argument("--format", choices=("avi", "mp4", "png", "tiff"), default="avi")
+    p.add_argument("--format", choices=("avi", "mp4", "png", "tiff"), default=None,
+                   help="default: avi, or the scene file's own with --scene")
     p.add_argument("--frames", type=_positive_int, default=50)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--look", default="transmitted",
                    help="transmitted, opaque, fluorescent or low_contrast")
-    p.add_argument("--bit-depth", type=int, choices=(8, 16), default=8)
+    p.add_argument("--bit-depth", type=int, choices=(8, 16), default=None,
+                   help="default: 8, or the scene file's own with --scene")
     p.add_argument("--size", default="1024x768", help="image size WIDTHxHEIGHT, px")
     p.add_argument("--angle", type=float, default=0.0,
                    help="direction of the tube at its base, degrees CCW from +x")

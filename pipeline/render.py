@@ -688,12 +688,19 @@ def strain_for_angle(sample, angle_deg: float, *, k: float = 0.0, eps_min: float
     return float(brentq(f, eps_min + 1e-9, eps_min + 5.0, xtol=1e-12))
 
 
-def render_to_folder(sample, out, *, fmt: str = "avi", n_frames: int = 50, seed: int = 0,
-                     look="transmitted", bit_depth: int = 8, scene_file=None,
+def render_to_folder(sample, out, *, fmt: str | None = None, n_frames: int = 50, seed: int = 0,
+                     look="transmitted", bit_depth: int | None = None, scene_file=None,
                      progress=None, **changes) -> Path:
-    """The ``microtube render`` command: a default scene of ``sample`` (or a scene.json)."""
+    """The ``microtube render`` command: a default scene of ``sample`` (or a scene.json).
+
+    ``fmt`` and ``bit_depth`` default to the scene file's own (so that a
+    scene.json regenerates the same files), or to 8-bit AVI.
+    """
     if scene_file is not None:
-        scene, _, _ = load_scene(scene_file)
+        scene, fmt_was, depth_was = load_scene(scene_file)
     else:
         scene = default_scene(sample, n_frames=n_frames, seed=seed, look=look, **changes)
-    return render_scene(scene, out, fmt=fmt, bit_depth=bit_depth, progress=progress)
+        fmt_was, depth_was = "avi", 8
+    return render_scene(scene, out, fmt=fmt or fmt_was,
+                        bit_depth=bit_depth if bit_depth is not None else depth_was,
+                        progress=progress)

@@ -5,6 +5,7 @@ import pandas as pd
 import pytest
 
 from pipeline import schema as S
+from pipeline.cli import main
 from pipeline.frames import open_frames, to_float
 from pipeline.render import Renderer, default_scene, load_scene, render_scene, truth_tables
 
@@ -55,6 +56,18 @@ def test_scene_regenerates_bit_for_bit_from_its_json(tmp_path):
     assert list(lines.columns) == S.CENTRELINE_COLUMNS
     step = np.hypot(*np.diff(lines[lines[S.FRAME] == 3][[S.X, S.Y]].to_numpy(), axis=0).T)
     assert step.max() <= Renderer(again).layout.um_per_px  # ≤ 1 px apart
+
+
+def test_render_command_regenerates_a_scene_in_its_own_format_and_depth(tmp_path):
+    scene = _small(look=CLEAN)
+    a = render_scene(scene, tmp_path / "a", fmt="tiff", bit_depth=16)
+    assert main(["render", "--scene", str(a / S.SCENE_FILE), "--out", str(tmp_path / "b"),
+                 "-q"]) == 0
+    assert (tmp_path / "b" / S.SCENE_FILE).read_text() == (a / S.SCENE_FILE).read_text()
+    with open_frames(a / "frames.tif") as ra, open_frames(tmp_path / "b" / "frames.tif") as rb:
+        assert rb.dtype == np.uint16
+        for fa, fb in zip(ra, rb, strict=True):
+            np.testing.assert_array_equal(fa, fb)
 
 
 def test_mirror_curls_clockwise_with_a_negative_angle():
