@@ -12,6 +12,7 @@ at all, whatever happens to the frame iterable midway.
 from __future__ import annotations
 
 import json
+import os
 import re
 import weakref
 from collections.abc import Iterable, Iterator
@@ -21,6 +22,13 @@ import cv2
 import numpy as np
 
 from .atomic import atomic_dir, atomic_path
+
+# FFmpeg, under OpenCV's video IO, prints its own complaints to stderr (e.g.
+# "[mjpeg @ 0x…] overread 8" on a truncated file), where they would break the
+# command line's one-line messages: the reader reports what it cannot decode
+# itself. OpenCV reads this once, when its FFmpeg backend first starts, so it
+# is set on import; a value the user has set is kept.
+os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")  # AV_LOG_QUIET
 
 IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".jpg", ".jpeg", ".bmp")
 TIFF_SUFFIXES = (".tif", ".tiff")

@@ -230,6 +230,21 @@ def test_a_blank_frame_mid_video_is_a_row_with_a_reason_not_an_angle(scene, um_p
     assert 3 not in set(pd.read_csv(out / S.CENTRELINES_FILE)["frame"])
 
 
+def test_a_truncated_video_is_tracked_as_far_as_it_goes_and_says_so(scene, um_per_px,
+                                                                    tmp_path, capfd):
+    data = (scene / "frames.avi").read_bytes()
+    (tmp_path / "cut.avi").write_bytes(data[: int(0.6 * len(data))])  # mid-frame
+    out = tmp_path / "out"
+    code = main(["track", str(tmp_path / "cut.avi"), "--out", str(out), "--um-per-px",
+                 str(um_per_px)])
+    assert code == 0
+    captured = capfd.readouterr()
+    assert captured.err == ""  # (not even FFmpeg's own complaint about the cut frame)
+    n = len(pd.read_csv(out / S.TRACKS_FILE))
+    assert 0 < n < N_FRAMES
+    assert f"the video ended after {n} of the {N_FRAMES} frames" in captured.out
+
+
 def test_an_internal_error_is_one_line_with_status_3(monkeypatch, scene, tmp_path, capsys):
     import pipeline.tracks
 
