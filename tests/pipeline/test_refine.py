@@ -21,7 +21,7 @@ from pipeline.refine import (
     self_contact,
     widths_at,
 )
-from tests.pipeline.synthetic import arc_axis, tube_image
+from tests.pipeline.synthetic import _signed_position, arc_axis, tube_image
 
 SHAPE = (480, 640)
 BASE = 120 - 420j
@@ -230,3 +230,21 @@ def test_widths_at_measures_the_outer_width_anywhere_along_the_tube(kappa):
     r0, c0 = 100, 60
     cropped = widths_at(img[r0:, c0:], truth, look, u, origin=(c0, r0))
     assert np.allclose(cropped, width, atol=1e-4, rtol=0)
+
+
+def test_a_noisy_sealed_tip_is_placed_at_its_end_not_pushed_beyond_it():
+    # a small bright (fluorescent) tube whose last 2.5 px are a solid plug,
+    # brighter than the hollow tube: the wide filter a noisy frame needs puts
+    # the end 1-2 px beyond it, away from the plug's inner step
+    base, length, hw = 40 - 120j, 110.0, 4.0
+    img = tube_image((240, 200), base, 0.0, length, 0.0, hw, polarity=1, background=0.05,
+                     contrast=0.6, edge_px=0.8)
+    rr, cc = np.mgrid[0:240, 0:200]
+    s, d = _signed_position(cc - 1j * rr, base, 0.0, length, 0.0)
+    img = img + 0.05 * ((s > length - 2.5) & (s < length) & (np.abs(d) < hw))
+    img = img + np.random.default_rng(4).normal(0, 0.004, img.shape)
+    look = TubeLook(1, np.full(5, hw), 0.005, smooth_px=2.4)
+    start = Curve(base, 0.0, length - 2.0, np.zeros(6))
+    r = refine(img.astype(np.float32), start, look, iterations=12, tol_px=0.005)
+    assert r.tip_found
+    assert abs(r.curve.length - length) < 0.45  # the wide filter alone: +0.65 px
