@@ -30,6 +30,12 @@ each time the bend has grown by a quarter. A joint gets a triple knot in the spl
 joints are known the spline between them is coarser
 (:attr:`TrackSettings.jointed_widths_per_coef`).
 
+The base, where the pipette holds the tube, is one point for the whole video
+(unless given): found on the first frame, then put at the median of where the
+first :data:`BASE_VOTE_FRAMES` measured frames show it; those frames are held
+back and refitted to it before they are yielded (a bounded buffer: memory stays
+flat in the number of frames).
+
 A frame that none of these can measure keeps NaN measurements and a status
 saying why; tracking goes on with the last good shape as the prediction.
 """
@@ -90,6 +96,14 @@ RECORD_FRAMES = 32
 MAX_LENGTH_STEP = 0.08
 #: Consecutive lost frames after which the tracker starts from scratch.
 RESTART_AFTER = 5
+#: The base, where the pipette holds the tube, stands still: it is put at the
+#: median of where :func:`pipeline.refine.locate_base` finds it on each of the
+#: first this many measured frames, and those frames are held back and refitted
+#: to it. (One frame's finding scatters by 0.3-2 px on small, noisy tubes, and
+#: an error Δs along the tube takes κ·Δs off every frame's bend.)
+BASE_VOTE_FRAMES = 8
+#: A base moved by less than this (px) is left where it is.
+BASE_MOVE_MIN_PX = 0.25
 #: Bend (deg) from which the tracker looks for the section joints, where the
 #: curvature steps, when they are not given; it looks again each time the bend
 #: has grown by :data:`JOINT_CHECK_GROWTH` (a step shows more the more it bends).
@@ -510,6 +524,10 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
     widths = None if given else WidthRecord()
     # (joints, last section's curvature over the one before's) when last seen whole
     tip_ratio: tuple[tuple[float, ...], float] | None = None
+    # where the base was found on the first frames, and those frames' results
+    # (with the frames) held back until it is settled; not when it was given
+    votes: list[complex] = []
+    pending: list[tuple[FrameTrack, np.ndarray]] | None = [] if base_hint is None else None
     for index, frame in enumerate(frames):
         det = first_detection if index == 0 else None
         search = bool(history) and abs(history[-1].coef[-1]) >= search_from
@@ -541,14 +559,74 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
             # the pipette holds the base still: a restart finds the tube from the
             # same base, so the ends cannot swap (which would flip the angle's sign)
             held_base = base_hint if base_hint is not None else _base_col_row(result.curve)
+            if pending is not None and not result.crossing:
+                votes.append(locate_base(as_float(frame), result.curve, look).base)
         else:
             lost_run += 1
             if lost_run >= RESTART_AFTER:
                 # the last good shape may itself be wrong: start afresh
                 history = []
-        yield result
-        if progress is not None:
-            progress(index)
+        if pending is not None:
+            # (a copy: a reader may hand out the same buffer for every frame)
+            pending.append((result, np.array(frame)))
+            if len(votes) < BASE_VOTE_FRAMES:
+                continue
+            shift = _settled_base(history, votes)
+            if shift:
+                history = [_moved_base(h, shift) for h in history]
+                held_base = _base_col_row(history[-1])
+            done, pending = _refitted(pending, shift, look, settings), None
+        else:
+            done = [result]
+        for r in done:
+            yield r
+            if progress is not None:
+                progress(r.frame)
+    if pending:  # a video shorter than the vote
+        shift = _settled_base(history, votes) if history else 0.0
+        for r in _refitted(pending, shift, look, settings):
+            yield r
+            if progress is not None:
+                progress(r.frame)
+
+
+def _settled_base(history: list[Curve], votes: list[complex]) -> float:
+    """How far (px, along the base axis) to move the base of the curves in
+    ``history`` to the median of ``votes``; 0 when less than
+    :data:`BASE_MOVE_MIN_PX` (or nothing to move)."""
+    if not history or not votes:
+        return 0.0
+    curve = history[-1]
+    along = np.real((np.asarray(votes) - curve.base) * np.exp(-1j * curve.base_angle))
+    shift = float(np.median(along))
+    return shift if abs(shift) > BASE_MOVE_MIN_PX else 0.0
+
+
+def _moved_base(curve: Curve, shift: float) -> Curve:
+    """``curve`` with its base moved ``shift`` px along the base axis, the tip kept."""
+    return replace(curve, base=curve.base + shift * np.exp(1j * curve.base_angle),
+                   length=max(curve.length - shift, 2.0))
+
+
+def _refitted(pending, shift: float, look: TubeLook | None, settings: TrackSettings):
+    """The held-back results, each measured frame refitted from the base moved
+    by ``shift`` px (kept as it was if that fit fails the checks); the frame
+    that found the base says it was moved."""
+    out = []
+    for result, frame in pending:
+        if shift and result.base_source:
+            result = replace(result, base_source=(
+                f"{result.base_source}; then moved {shift:+.1f} px along the base axis, to "
+                "the median of where the first frames show it"))
+        if not shift or not result.ok or look is None:
+            out.append(result)
+            continue
+        r = refine(as_float(frame), _moved_base(result.curve, shift), look,
+                   iterations=settings.first_rounds, avoid_contact=result.crossing,
+                   tol_px=settings.tol_px)
+        out.append(replace(result, curve=r.curve, residual_px=r.residual_px,
+                           valid_fraction=r.valid_fraction) if _good(r, look) else result)
+    return out
 
 
 def _track_one(index, frame, look, history, base_hint, base_end, detection, settings,

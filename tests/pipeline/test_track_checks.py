@@ -63,6 +63,21 @@ def test_every_frame_of_a_clean_scene_is_measured_with_its_length():
     assert np.max(np.abs(lengths / truth["length_um"].to_numpy() - 1)) < 0.01
 
 
+def test_frames_held_back_for_the_base_come_out_in_order_with_one_base():
+    # the first BASE_VOTE_FRAMES results wait until the base is settled; a clip
+    # shorter than that must still give every frame, in order, and report each
+    frames, truth, scale = _frames()
+    for clip in (frames, frames[:3]):
+        done = []
+        results = list(track_frames(clip, progress=done.append))
+        assert [r.frame for r in results] == list(range(len(clip))) == done
+        assert all(r.ok for r in results)
+        bases = np.array([r.curve.base for r in results])
+        assert np.ptp(bases.real) < 1e-9 and np.ptp(bases.imag) < 1e-9
+        truth_base = (truth["base_x_um"][0] + 1j * truth["base_y_um"][0]) / scale
+        assert abs(bases[0] - truth_base) < 0.5
+
+
 def test_a_restart_keeps_the_base_found_before():
     frames, truth, scale = _frames()
     blank = np.full_like(frames[0], int(np.median(frames[0])))
