@@ -571,11 +571,11 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
             pending.append((result, np.array(frame)))
             if len(votes) < BASE_VOTE_FRAMES:
                 continue
-            shift = _settled_base(history, votes)
-            if shift:
-                history = [_moved_base(h, shift) for h in history]
+            base = _settled_base(history, votes)
+            if base is not None:
+                history = [_moved_base(h, base) for h in history]
                 held_base = _base_col_row(history[-1])
-            done, pending = _refitted(pending, shift, look, settings), None
+            done, pending = _refitted(pending, base, look, settings), None
         else:
             done = [result]
         for r in done:
@@ -583,47 +583,51 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
             if progress is not None:
                 progress(r.frame)
     if pending:  # a video shorter than the vote
-        shift = _settled_base(history, votes) if history else 0.0
-        for r in _refitted(pending, shift, look, settings):
+        for r in _refitted(pending, _settled_base(history, votes), look, settings):
             yield r
             if progress is not None:
                 progress(r.frame)
 
 
-def _settled_base(history: list[Curve], votes: list[complex]) -> float:
-    """How far (px, along the base axis) to move the base of the curves in
-    ``history`` to the median of ``votes``; 0 when less than
-    :data:`BASE_MOVE_MIN_PX` (or nothing to move)."""
+def _settled_base(history: list[Curve], votes: list[complex]) -> complex | None:
+    """Where the base goes: the median along the base axis of ``votes``, on the
+    axis of the last curve in ``history``; None when that is less than
+    :data:`BASE_MOVE_MIN_PX` from its base (or there is nothing to move)."""
     if not history or not votes:
-        return 0.0
+        return None
     curve = history[-1]
-    along = np.real((np.asarray(votes) - curve.base) * np.exp(-1j * curve.base_angle))
-    shift = float(np.median(along))
-    return shift if abs(shift) > BASE_MOVE_MIN_PX else 0.0
+    axis = np.exp(1j * curve.base_angle)
+    shift = float(np.median(np.real((np.asarray(votes) - curve.base) * np.conj(axis))))
+    return curve.base + shift * axis if abs(shift) > BASE_MOVE_MIN_PX else None
 
 
-def _moved_base(curve: Curve, shift: float) -> Curve:
-    """``curve`` with its base moved ``shift`` px along the base axis, the tip kept."""
+def _moved_base(curve: Curve, base: complex) -> Curve:
+    """``curve`` with its base moved along its base axis to abreast of ``base``,
+    its tip kept."""
+    shift = float(np.real((base - curve.base) * np.exp(-1j * curve.base_angle)))
     return replace(curve, base=curve.base + shift * np.exp(1j * curve.base_angle),
                    length=max(curve.length - shift, 2.0))
 
 
-def _refitted(pending, shift: float, look: TubeLook | None, settings: TrackSettings):
-    """The held-back results, each measured frame refitted from the base moved
-    by ``shift`` px (kept as it was if that fit fails the checks); the frame
-    that found the base says it was moved."""
+def _refitted(pending, base: complex | None, look: TubeLook | None,
+              settings: TrackSettings) -> list[FrameTrack]:
+    """The held-back results, each measured frame refitted from its base moved
+    to ``base`` (kept as it was if that fit fails the checks); the frame that
+    found the base says it was moved."""
     out = []
     for result, frame in pending:
-        if shift and result.base_source:
-            result = replace(result, base_source=(
-                f"{result.base_source}; then moved {shift:+.1f} px along the base axis, to "
-                "the median of where the first frames show it"))
-        if not shift or not result.ok or look is None:
+        if base is None or not result.ok or look is None:
             out.append(result)
             continue
-        r = refine(as_float(frame), _moved_base(result.curve, shift), look,
-                   iterations=settings.first_rounds, avoid_contact=result.crossing,
-                   tol_px=settings.tol_px)
+        moved = _moved_base(result.curve, base)
+        if result.base_source:
+            shift = result.curve.length - moved.length
+            result = replace(result, base_source=(
+                f"{result.base_source}; then moved {abs(shift):.1f} px "
+                f"{'towards the tip' if shift > 0 else 'back along the pipette axis'}, to the "
+                "median of where the first frames show it"))
+        r = refine(as_float(frame), moved, look, iterations=settings.first_rounds,
+                   avoid_contact=result.crossing, tol_px=settings.tol_px)
         out.append(replace(result, curve=r.curve, residual_px=r.residual_px,
                            valid_fraction=r.valid_fraction) if _good(r, look) else result)
     return out

@@ -234,7 +234,7 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
     if total and len(results) < total:
         # a video's header count: a truncated file decodes fewer frames, silently
         notes.append(f"the video ended after {len(results)} of the {total} frames its header "
-                     "announces (a truncated file?)")
+                     "announces (a truncated file, or a header that counts wrong)")
     base_source = "given (--base)" if base_hint else next(
         (r.base_source for r in results if r.base_source), "not found")
     n_ok = int(sum(r.ok for r in results))
