@@ -4,6 +4,7 @@ from dataclasses import replace
 
 import cv2
 import numpy as np
+import pytest
 
 from pipeline import track
 from pipeline.centreline import fit_to_polyline
@@ -76,6 +77,17 @@ def test_frames_held_back_for_the_base_come_out_in_order_with_one_base():
         assert np.ptp(bases.real) < 1e-9 and np.ptp(bases.imag) < 1e-9
         truth_base = (truth["base_x_um"][0] + 1j * truth["base_y_um"][0]) / scale
         assert abs(bases[0] - truth_base) < 0.5
+
+
+def test_the_base_tangent_goes_to_the_median_of_the_slightly_bent_frames():
+    # (|bend|, measured - in use), rad: the strong roughness penalty pulls φ(0)
+    # with the bend, and a noisy frame can be far off; those votes are left out
+    d = np.radians
+    votes = [(d(1), 0.0), (d(15), d(-0.6)), (d(30), d(-0.8)), (d(45), d(-0.7)),
+             (d(90), d(2.5)), (d(120), d(2.9)), (d(20), d(-7.0))]
+    assert np.degrees(track._settled_turn(votes)) == pytest.approx(-0.65)
+    # too few votes: the first frame's tangent stays
+    assert track._settled_turn(votes[:2] + votes[4:]) == 0.0
 
 
 def test_a_restart_keeps_the_base_found_before():
