@@ -115,7 +115,7 @@ BASE_MOVE_MIN_PX = 0.25
 #: medians that moved > 0.02°, 55 fell and 29 rose; scenes meeting every target
 #: 123 → 123 (the independent renderer's glow scenes 0.95° → 0.42° pass; two of
 #: the repo's, whose base tangent error had offset their tip's, no longer do).
-BASE_ANGLE_MAX_BEND_DEG = 60.0
+BASE_ANGLE_MAX_BEND_DEG = 30.0
 BASE_ANGLE_SPREAD_DEG = 3.0
 BASE_ANGLE_MIN_VOTES = 3
 #: Bend (deg) from which the tracker looks for the section joints, where the

@@ -83,8 +83,8 @@ def test_the_base_tangent_goes_to_the_median_of_the_slightly_bent_frames():
     # (|bend|, measured - in use), rad: the strong roughness penalty pulls φ(0)
     # with the bend, and a noisy frame can be far off; those votes are left out
     d = np.radians
-    votes = [(d(1), 0.0), (d(15), d(-0.6)), (d(30), d(-0.8)), (d(45), d(-0.7)),
-             (d(90), d(2.5)), (d(120), d(2.9)), (d(20), d(-7.0))]
+    votes = [(d(1), 0.0), (d(10), d(-0.6)), (d(20), d(-0.8)), (d(25), d(-0.7)),
+             (d(60), d(2.5)), (d(120), d(2.9)), (d(15), d(-7.0))]
     assert np.degrees(track._settled_turn(votes)) == pytest.approx(-0.65)
     # too few votes: the first frame's tangent stays
     assert track._settled_turn(votes[:2] + votes[4:]) == 0.0
