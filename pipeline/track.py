@@ -44,7 +44,7 @@ saying why; tracking goes on with the last good shape as the prediction.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Iterator
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -540,8 +540,7 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
     tip_ratio: tuple[tuple[float, ...], float] | None = None
     # where the base was found on the first frames, and those frames' results
     # (with the frames) held back until it is settled; not when it was given
-    votes: list[complex] = []
-    angle_votes: list[tuple[float, float]] = []  # (bend, base angle − the one in use), rad
+    votes = _BaseVotes()
     pending: list[tuple[FrameTrack, np.ndarray]] | None = [] if base_hint is None else None
     for index, frame in enumerate(frames):
         det = first_detection if index == 0 else None
@@ -575,15 +574,7 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
             # same base, so the ends cannot swap (which would flip the angle's sign)
             held_base = base_hint if base_hint is not None else _base_col_row(result.curve)
             if pending is not None and not result.crossing:
-                image = as_float(frame)
-                votes.append(locate_base(image, result.curve, look).base)
-                # the base tangent as initialise measures it (φ(0) free, under the
-                # strong roughness penalty that makes it follow the whole tube)
-                fit = refine(image, result.curve, look, iterations=6, free_base=True,
-                             smoothing=BASE_SMOOTHING, tol_px=settings.tol_px)
-                if _good(fit, look):
-                    angle_votes.append((abs(result.curve.coef[-1]),
-                                        fit.curve.base_angle - result.curve.base_angle))
+                votes.add(as_float(frame), result.curve, look, settings)
         else:
             lost_run += 1
             if lost_run >= RESTART_AFTER:
@@ -592,10 +583,9 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
         if pending is not None:
             # (a copy: a reader may hand out the same buffer for every frame)
             pending.append((result, np.array(frame)))
-            if len(votes) < BASE_VOTE_FRAMES:
+            if len(votes.points) < BASE_VOTE_FRAMES:
                 continue
-            base = _settled_base(history, votes)
-            turn = _settled_turn(angle_votes)
+            base, turn = votes.settled(history)
             if base is not None or turn:
                 history = [_moved_base(h, base, turn) for h in history]
                 held_base = _base_col_row(history[-1])
@@ -607,11 +597,34 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
             if progress is not None:
                 progress(r.frame)
     if pending:  # a video shorter than the vote
-        for r in _refitted(pending, _settled_base(history, votes), _settled_turn(angle_votes),
-                           look, settings):
+        for r in _refitted(pending, *votes.settled(history), look, settings):
             yield r
             if progress is not None:
                 progress(r.frame)
+
+
+@dataclass
+class _BaseVotes:
+    """Where the first frames show the base (:data:`BASE_VOTE_FRAMES`)."""
+
+    points: list[complex] = field(default_factory=list)
+    #: (|bend|, base tangent measured − the one in use), rad
+    turns: list[tuple[float, float]] = field(default_factory=list)
+
+    def add(self, image: np.ndarray, curve: Curve, look: TubeLook,
+            settings: TrackSettings) -> None:
+        """This frame's findings, ``curve`` being its fit."""
+        self.points.append(locate_base(image, curve, look).base)
+        # the base tangent as initialise measures it (φ(0) free, under the strong
+        # roughness penalty that makes it follow the whole tube)
+        fit = refine(image, curve, look, iterations=6, free_base=True,
+                     smoothing=BASE_SMOOTHING, tol_px=settings.tol_px)
+        if _good(fit, look):
+            self.turns.append((abs(curve.coef[-1]), fit.curve.base_angle - curve.base_angle))
+
+    def settled(self, history: list[Curve]) -> tuple[complex | None, float]:
+        """Where the base goes and how far its tangent turns (see below)."""
+        return _settled_base(history, self.points), _settled_turn(self.turns)
 
 
 def _settled_base(history: list[Curve], votes: list[complex]) -> complex | None:
