@@ -42,6 +42,10 @@ class Look:
         Relative illumination change across the image and towards its corners.
     dust : int
         Number of dust specks (fixed across frames).
+    texture : float
+        Relative amplitude of a mottled background fixed across frames (a
+        textured substrate or a dirty slide): the sum of smooth random fields
+        at 2, 6 and 20 px, each of this standard deviation; 0 for none.
     flicker : float
         Standard deviation of the frame-to-frame illumination gain.
     photons : float
@@ -65,6 +69,7 @@ class Look:
     gradient: float = 0.12
     vignetting: float = 0.15
     dust: int = 12
+    texture: float = 0.0
     flicker: float = 0.01
     photons: float = 4000.0
     read_noise: float = 0.006
@@ -78,8 +83,8 @@ class Look:
             value = getattr(self, name)
             if not (np.isfinite(value) and 0 <= value <= 1):
                 raise ValueError(f"look {name} must be in [0, 1], got {value!r}")
-        for name in ("absorption_per_px", "rim_px", "gradient", "vignetting", "flicker",
-                     "photons", "read_noise", "blur_px"):
+        for name in ("absorption_per_px", "rim_px", "gradient", "vignetting", "texture",
+                     "flicker", "photons", "read_noise", "blur_px"):
             value = getattr(self, name)
             if not (np.isfinite(value) and value >= 0):
                 raise ValueError(f"look {name} must be a non-negative number, got {value!r}")

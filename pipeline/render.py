@@ -480,6 +480,16 @@ class Renderer:
             yy, xx = np.mgrid[r0:r1, c0:c1]
             blob = depth * np.exp(-((xx - cx) ** 2 + (yy - cy) ** 2) / (2 * sigma**2))
             dust[r0:r1, c0:c1] *= (1 - blob).astype(np.float32)
+        if look.texture > 0:
+            import cv2
+
+            rng = np.random.default_rng([sc.seed, 4])
+            mottle = np.zeros_like(dust)
+            for sigma in (2.0, 6.0, 20.0):
+                field = cv2.GaussianBlur(rng.standard_normal(dust.shape, dtype=np.float32),
+                                         (0, 0), sigma)
+                mottle += look.texture * field / max(float(field.std()), 1e-12)
+            dust *= np.clip(1 + mottle, 0.05, None)
         return dust
 
     def tube_layers(self, index: int) -> np.ndarray:
