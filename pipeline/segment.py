@@ -382,9 +382,9 @@ def detect(image: np.ndarray, *, base_hint=None, base_end=None) -> Detection | N
     """
     f = working_scale(image.shape)
     contrast, _ = contrast_image(image, f)
-    # the tube's own contrast first; failing that, its outline (a transparent tube
-    # on a mottled background, darker than it in places, differs from it mostly
-    # in its sharp edges)
+    # the tube by its own contrast, and by its outline: a transparent tube on a
+    # mottled background, no darker than the darker patches, differs from them
+    # mostly in its sharp edges
     det = _detect_in(foreground(contrast), f, base_hint, base_end)
     outline = _detect_in(outline_foreground(contrast), f, base_hint, base_end, outline=True)
     if outline is not None and (det is None or (
@@ -407,9 +407,9 @@ def _detect_in(mask: np.ndarray, f: int, base_hint, base_end, *,
     # reaches its middle at a width under 2 radii (the discrete radii step past
     # half the gap), and the next radius still widens it as it rounds the ends'
     # corners; an outline no closing fills is a ring, not a tube
-    filled, radius = fill_tube(fill_lumen(mask), **({"fill_ratio": 1.6, "plateau_ratio": 1.2}
-                                                    if outline else {}))
-    if outline and radius == 0:
+    filled, closing = fill_tube(fill_lumen(mask), **({"fill_ratio": 1.6, "plateau_ratio": 1.2}
+                                                     if outline else {}))
+    if outline and closing == 0:
         return None
     dist = ndi.distance_transform_edt(filled)
     skel = skeletonize(filled)
