@@ -74,6 +74,11 @@ class Detection:
     half_width: float
     base_source: str
 
+    @property
+    def length(self) -> float:
+        """Length of :attr:`path`, px."""
+        return float(np.abs(np.diff(self.path)).sum())
+
 
 def working_scale(shape, target: int = 512) -> int:
     """Integer downsampling factor bringing the larger side to ≤ ``target`` px."""
@@ -159,7 +164,7 @@ def outline_foreground(contrast: np.ndarray, *, high: float = 6.0, low: float = 
     over the frame (the background's, noise and mottle alike).
     """
     smooth = cv2.GaussianBlur(contrast, (0, 0), 1.0)
-    # (Sobel's 3x3 kernel sums to 8x the central difference)
+    # (Sobel's unnormalised scale cancels: the thresholds are multiples of the median)
     gx = cv2.Sobel(smooth, cv2.CV_32F, 1, 0, ksize=3)
     gy = cv2.Sobel(smooth, cv2.CV_32F, 0, 1, ksize=3)
     mag = np.hypot(gx, gy)
@@ -388,14 +393,10 @@ def detect(image: np.ndarray, *, base_hint=None, base_end=None) -> Detection | N
     det = _detect_in(foreground(contrast), f, base_hint, base_end)
     outline = _detect_in(outline_foreground(contrast), f, base_hint, base_end, outline=True)
     if outline is not None and (det is None or (
-            _path_length(outline) > OUTLINE_LONGER * _path_length(det)
+            outline.length > OUTLINE_LONGER * det.length
             and det.half_width < OUTLINE_WIDER * outline.half_width)):
         return outline
     return det
-
-
-def _path_length(det: Detection) -> float:
-    return float(np.abs(np.diff(det.path)).sum())
 
 
 def _detect_in(mask: np.ndarray, f: int, base_hint, base_end, *,

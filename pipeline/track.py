@@ -310,7 +310,7 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
         return None
     source = det.base_source
     hw = det.half_width
-    length = float(np.abs(np.diff(det.path)).sum())
+    length = det.length
     # found without the joints, whose kinks would follow the skeleton's hooks
     # and spurs as readily as the tube (fluorescent sample 1 with its joints
     # given: a wrong end, 47° off); they are put in once the tube is found
@@ -922,7 +922,7 @@ def _redetect(image, prev: Curve, look: TubeLook, settings: TrackSettings) -> Re
         return None
     tol = settings.tol_px
     hw = look.mean_half_width
-    length = float(np.abs(np.diff(det.path)).sum())
+    length = det.length
     n_fine = spline_size(length, hw, (), settings, known=False)
     start = fit_to_polyline(det.path, prev.base_angle, n_coef=n_fine)
     start = replace(start, base=prev.base)
