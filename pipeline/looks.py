@@ -3,7 +3,9 @@
 A look is a few numbers describing the optics, not a picture: the renderer
 turns them into cross-section profiles. Transmitted-light looks attenuate the
 illumination (layers multiply where the tube crosses itself); the fluorescent
-look emits light in proportion to the PDMS path length (layers add).
+look emits light in proportion to the PDMS path length (layers add); the
+relief look (differential interference contrast) shows the slope of that path
+length along a shear direction: the tube lit on one flank, shaded on the other.
 """
 
 from __future__ import annotations
@@ -20,13 +22,15 @@ class Look:
     Parameters
     ----------
     name : str
-    mode : {"transmit", "emit"}
+    mode : {"transmit", "emit", "relief"}
         ``transmit``: image = illumination · Π transmissions. ``emit``: image =
-        dark background + Σ emissions (fluorescence).
+        dark background + Σ emissions (fluorescence). ``relief``: image =
+        background · (1 + slope along the shear of Σ path lengths · absorption_per_px).
     background : float
         Mean background level in [0, 1].
     absorption_per_px : float
-        Attenuation (transmit) or emission (emit) per px of PDMS crossed.
+        Attenuation (transmit) or emission (emit) per px of PDMS crossed; in
+        relief, the brightening per unit slope of the path length.
     rim_depth, rim_px : float
         Darkening by refraction at the steep outer wall: depth in [0, 1] and
         decay length, px.
@@ -54,6 +58,9 @@ class Look:
         Gaussian noise, fraction of full scale.
     blur_px : float
         Extra defocus blur (Gaussian sigma), px, on top of the optics' 0.5 px.
+    shear_deg : float
+        Relief only: the shear direction, deg counter-clockwise from the
+        image's +x with y up; a flank whose inward normal faces it shows bright.
     """
 
     name: str = "transmitted"
@@ -74,10 +81,14 @@ class Look:
     photons: float = 4000.0
     read_noise: float = 0.006
     blur_px: float = 0.0
+    shear_deg: float = 45.0
 
     def __post_init__(self):
-        if self.mode not in ("transmit", "emit"):
-            raise ValueError(f"look mode must be 'transmit' or 'emit', got {self.mode!r}")
+        if self.mode not in ("transmit", "emit", "relief"):
+            raise ValueError(
+                f"look mode must be 'transmit', 'emit' or 'relief', got {self.mode!r}")
+        if not np.isfinite(self.shear_deg):
+            raise ValueError(f"look shear_deg must be a finite angle, got {self.shear_deg!r}")
         for name in ("background", "rim_depth", "lumen_rim_depth", "opaque", "contrast",
                      "pipette_depth"):
             value = getattr(self, name)
@@ -108,6 +119,9 @@ LOOKS = {
                         photons=1500.0),
     "low_contrast": Look(name="low_contrast", contrast=0.3, gradient=0.2, vignetting=0.25,
                          dust=20, flicker=0.02, read_noise=0.008),
+    "dic": Look(name="dic", mode="relief", background=0.5, absorption_per_px=0.15,
+                rim_depth=0.0, lumen_rim_depth=0.0, pipette_depth=0.5, gradient=0.05,
+                vignetting=0.1, dust=8, photons=3000.0, shear_deg=-45.0),
 }
 
 

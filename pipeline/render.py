@@ -283,7 +283,7 @@ def _tube_profile(look: Look, r_out: float, r_lumen: float, lumen_offset: float,
     path = (2 * np.sqrt(np.clip(r_out**2 - d**2, 0, None))
             - 2 * np.sqrt(np.clip(r_lumen**2 - (d - lumen_offset) ** 2, 0, None)))
     path = np.clip(path, 0, None)
-    if look.mode == "emit":
+    if look.mode in ("emit", "relief"):
         values = look.absorption_per_px * path
     else:
         rim = look.rim_depth * inside * np.exp(-(r_out - np.abs(d)) / max(look.rim_px, 1e-3))
@@ -441,8 +441,10 @@ class Renderer:
                      max(self.look.rim_px, 0.5), float(r_out[-1]))
         rp = scene.pipette_ratio * float(r_out[0])
         # the pipette is glass whatever the tube is made of: thin walls, refraction rims
-        glass = self.look.replace(opaque=0.0, absorption_per_px=0.01, rim_depth=0.5,
-                                  lumen_rim_depth=0.2)
+        # (in relief its path shows as the tube's does: glass is as clear as PDMS)
+        glass = self.look.replace(opaque=0.0, rim_depth=0.5, lumen_rim_depth=0.2,
+                                  absorption_per_px=(self.look.absorption_per_px
+                                                     if self.look.mode == "relief" else 0.01))
         self.pipette = _tube_profile(glass, rp, _PIPETTE_GLASS * rp, 0.0,
                                      depth=self.look.pipette_depth)
         self.illumination = self._illumination()
@@ -493,10 +495,11 @@ class Renderer:
         return dust
 
     def tube_layers(self, index: int) -> np.ndarray:
-        """Noise-free tube + pipette: transmission (transmit) or emission (emit) map."""
+        """Noise-free tube + pipette: transmission (transmit), emission (emit) or
+        path length times the relief's gain (relief) map."""
         sc, look = self.scene, self.look
         shape = (sc.height, sc.width)
-        emit = look.mode == "emit"
+        emit = look.mode in ("emit", "relief")   # (relief: the path lengths add)
         acc = np.zeros(shape, np.float64) if emit else np.ones(shape, np.float64)
 
         def apply(stamp):
@@ -526,6 +529,12 @@ class Renderer:
         layers = self.tube_layers(index).astype(np.float32)
         if look.mode == "emit":
             img = self.illumination * gain * (look.background + layers) * self.dust
+        elif look.mode == "relief":
+            # the path's slope along the shear (image rows run down: y = −row)
+            d_row, d_col = np.gradient(layers)
+            shear = math.radians(look.shear_deg)
+            slope = d_col * math.cos(shear) - d_row * math.sin(shear)
+            img = look.background * self.illumination * gain * (1 + slope) * self.dust
         else:
             img = look.background * self.illumination * gain * layers * self.dust
         if look.blur_px > 0:
