@@ -15,7 +15,7 @@ or an opaque tube). Offsets are in pixels along the left normal.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
@@ -88,12 +88,16 @@ class Edges:
         The weaker of the two edges' inward steps (intensity per px).
     valid : (M,) bool ndarray
         Both edges found, strong enough and at a plausible width.
+    facing : (M,) ndarray, optional
+        In a relief image, which way the chosen pair steps along the profile
+        (±1); None for other looks.
     """
 
     centre: np.ndarray
     width: np.ndarray
     strength: np.ndarray
     valid: np.ndarray
+    facing: np.ndarray | None = None
 
 
 def _parabolic(values: np.ndarray, idx: np.ndarray) -> np.ndarray:
@@ -137,7 +141,8 @@ def _top_peaks(values: np.ndarray, k: int):
 
 def edge_pairs(profiles: np.ndarray, step: float, half_width, *, polarity: int,
                window: float, width_tol: float = 0.2, smooth_px: float = 0.8,
-               min_strength: float = 0.0, n_peaks: int = 5) -> Edges:
+               min_strength: float = 0.0, n_peaks: int = 5,
+               facing: np.ndarray | None = None) -> Edges:
     """Find the tube's outer edge pair on every profile.
 
     The inward steps on each side are reduced to their strongest local maxima
@@ -155,8 +160,11 @@ def edge_pairs(profiles: np.ndarray, step: float, half_width, *, polarity: int,
         Sample spacing, px.
     half_width : float or (M,) ndarray
         Expected half-width of the tube at each profile, px.
-    polarity : {+1, −1}
-        Sign of the intensity step entering the tube.
+    polarity : {+1, −1, 0}
+        Sign of the intensity step entering the tube; 0 for a relief image
+        (differential interference contrast, oblique light), in which the
+        tube is lit on one flank and shaded on the other, so that its two
+        edges step the same way along a profile.
     window : float
         The centre is searched within ±window px of the profile origin.
     width_tol : float
@@ -167,22 +175,50 @@ def edge_pairs(profiles: np.ndarray, step: float, half_width, *, polarity: int,
         Weakest acceptable inward step, intensity per px.
     n_peaks : int
         Local maxima kept per side and profile.
+    facing : (M,) ndarray of ±1, optional
+        With ``polarity=0``: which way each profile's edges step (+1: up
+        along the profile, where its direction faces the relief's shear);
+        not given, both are tried and the stronger pair kept.
 
     Returns
     -------
     Edges
     """
-    m, p = profiles.shape
     grad, bad = _inward_gradient(profiles, step, smooth_px)
-    left = polarity * grad            # entering the tube from the −offset side
-    right = -left                     # entering from the +offset side
     if bad.any():
         # a sample outside the image, or next to one, never makes an edge
         near_bad = bad.copy()
         near_bad[:, 1:] |= bad[:, :-1]
         near_bad[:, :-1] |= bad[:, 1:]
-        left[near_bad] = -np.inf
-        right[near_bad] = -np.inf
+        grad[near_bad] = np.nan
+    kw = dict(step=step, half_width=half_width, window=window, width_tol=width_tol,
+              min_strength=min_strength, n_peaks=n_peaks, gaps=bad.any())
+    if polarity != 0:
+        # entering the tube from the −offset side, and from the +offset side
+        return _best_pairs(polarity * grad, -polarity * grad, **kw)
+    # relief: both edges step the same way along the profile, the way the
+    # normal faces the shear; not knowing that, either way may hold
+    if facing is not None:
+        facing = np.asarray(facing, dtype=float)
+        pairs = _best_pairs(facing[:, None] * grad, facing[:, None] * grad, **kw)
+        return replace(pairs, facing=facing)
+    rising = _best_pairs(grad, grad, **kw)
+    falling = _best_pairs(-grad, -grad, **kw)
+    take = falling.strength > rising.strength
+    return Edges(*(np.where(take, f, r) for f, r in zip(
+        (falling.centre, falling.width, falling.strength, falling.valid),
+        (rising.centre, rising.width, rising.strength, rising.valid), strict=True)),
+        facing=np.where(take, -1.0, 1.0))
+
+
+def _best_pairs(left, right, *, step, half_width, window, width_tol, min_strength,
+                n_peaks, gaps) -> Edges:
+    """:func:`edge_pairs` given each side's inward steps (NaN: no edge there,
+    only if ``gaps``)."""
+    if gaps:
+        left = np.where(np.isnan(left), -np.inf, left)
+        right = np.where(np.isnan(right), -np.inf, right)
+    m, p = left.shape
     mid = (p - 1) / 2
     li, lh = _top_peaks(left, n_peaks)
     ri, rh = _top_peaks(right, n_peaks)
@@ -226,7 +262,8 @@ def end_edge(profiles: np.ndarray, step: float, *, polarity: int, window: float,
     """
     m, p = profiles.shape
     grad, bad = _inward_gradient(profiles, step, smooth_px)
-    leaving = -polarity * grad
+    # relief: the end face is lit or shaded as it faces the shear
+    leaving = -polarity * grad if polarity != 0 else np.abs(grad)
     leaving[bad] = -np.inf
     mid = (p - 1) // 2
     w_s = int(round(window / step))
@@ -246,8 +283,29 @@ def end_edge(profiles: np.ndarray, step: float, *, polarity: int, window: float,
     else:
         idx = p - 1 - np.argmax(ok[:, ::-1], axis=1)
     found = ok.any(axis=1)
-    offset = np.where(found, (_parabolic(leaving, idx) - mid) * step, np.nan)
+    pos = _parabolic(leaving, idx)
+    if polarity == 0:
+        pos = _relief_line(grad, idx, pos, ok_from=strong * peak[:, 0], bad=bad | ~inwin)
+    offset = np.where(found, (pos - mid) * step, np.nan)
     return offset, np.where(found, masked[np.arange(m), idx], -np.inf)
+
+
+def _relief_line(grad, idx, pos, *, ok_from, bad):
+    """In a relief image a face across the profile (the tube's end) is a
+    bright or dark *line*, not a step: its outer flank lies half the line's
+    width beyond the face. Where the outer flank at ``idx`` has an inner one
+    (the nearest strong opposite step inward), the face is midway between."""
+    m, p = grad.shape
+    rows = np.arange(m)
+    opposite = -np.sign(grad[rows, idx])[:, None] * grad
+    opposite[np.broadcast_to(bad, grad.shape)] = -np.inf
+    is_max = np.zeros(grad.shape, dtype=bool)
+    is_max[:, 1:-1] = ((opposite[:, 1:-1] >= opposite[:, :-2])
+                       & (opposite[:, 1:-1] > opposite[:, 2:]))
+    inner = is_max & (opposite >= ok_from[:, None]) & (np.arange(p)[None, :] < idx[:, None])
+    has = inner.any(axis=1)
+    j = p - 1 - np.argmax(inner[:, ::-1], axis=1)
+    return np.where(has, 0.5 * (pos + _parabolic(opposite, j)), pos)
 
 
 def gradient_noise(image: np.ndarray, smooth_px: float) -> float:

@@ -498,4 +498,10 @@ def _detect_in(mask: np.ndarray, f: int, base_hint, base_end, *,
     tip_dir = pts[-1] - pts[max(0, len(pts) - 1 - max(2, int(half_width)))]
     if abs(tip_dir) > 0:
         pts = np.append(pts, pts[-1] + 0.9 * half_width_px * tip_dir / abs(tip_dir))
+    if base_hint is not None:
+        # a tube that starts at the given base with no pipette in view: its
+        # skeleton stops about a half-width short of that end, as of the tip's
+        hint = complex(from_image(float(base_hint[0]), float(base_hint[1])))
+        if 1.0 < abs(pts[0] - hint) <= 2.0 * half_width_px:
+            pts = np.concatenate([[hint], pts])
     return Detection(pts, complex(pts[0]), base_angle, half_width_px, source)
