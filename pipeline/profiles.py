@@ -74,6 +74,11 @@ def sample_strips(image: np.ndarray, starts, directions, offsets, shifts) -> np.
     return lines.reshape(m, k, -1).mean(axis=1)
 
 
+#: A relief's profile whose direction is this close to square with the shear
+#: (|cos| under it) sees the tube's edges at under this share of their step.
+FADED_COS = 0.3
+
+
 @dataclass(frozen=True)
 class Edges:
     """Edge pairs found on a set of normal profiles.
@@ -142,7 +147,8 @@ def _top_peaks(values: np.ndarray, k: int):
 def edge_pairs(profiles: np.ndarray, step: float, half_width, *, polarity: int,
                window: float, width_tol: float = 0.2, smooth_px: float = 0.8,
                min_strength: float = 0.0, n_peaks: int = 5,
-               facing: np.ndarray | None = None) -> Edges:
+               facing: np.ndarray | None = None,
+               directions: np.ndarray | None = None) -> Edges:
     """Find the tube's outer edge pair on every profile.
 
     The inward steps on each side are reduced to their strongest local maxima
@@ -150,7 +156,8 @@ def edge_pairs(profiles: np.ndarray, step: float, half_width, *, polarity: int,
     ``width_tol`` of the expected one and whose midpoint lies within
     ``window`` is a candidate; among the candidates at least 70% as strong as
     the best, the one nearest the profile's origin (the prediction) wins, so a
-    neighbouring coil or a crossing tube is not taken for this one.
+    neighbouring coil or a crossing tube is not taken for this one (in a
+    relief, the widest: a lumen's walls are no weaker than the outer ones).
 
     Parameters
     ----------
@@ -178,7 +185,14 @@ def edge_pairs(profiles: np.ndarray, step: float, half_width, *, polarity: int,
     facing : (M,) ndarray of ±1, optional
         With ``polarity=0``: which way each profile's edges step (+1: up
         along the profile, where its direction faces the relief's shear);
-        not given, both are tried and the stronger pair kept.
+        not given, both are tried: the stronger pair is kept, or, given the
+        profiles' ``directions``, the way every profile steps is the one a
+        single shear direction would give that finds the strongest pairs in
+        all (a straight tube's profiles all step alike: a hollow
+        tube's lumen walls, stepping the other way, must not take over where
+        its walls are thin).
+    directions : (M,) complex ndarray, optional
+        The profiles' directions (unit, y up), for ``polarity=0``.
 
     Returns
     -------
@@ -196,6 +210,11 @@ def edge_pairs(profiles: np.ndarray, step: float, half_width, *, polarity: int,
     if polarity != 0:
         # entering the tube from the −offset side, and from the +offset side
         return _best_pairs(polarity * grad, -polarity * grad, **kw)
+    # a hollow tube's lumen walls step the same way as its outer ones, as
+    # strongly and, with thin walls, a pair of them within the width's
+    # tolerance: of the strong pairs the widest is the outer one (measured on
+    # sample 2 in relief: the midline 1.4 px off over its thin-walled section)
+    kw["widest"] = True
     # relief: both edges step the same way along the profile, the way the
     # normal faces the shear; not knowing that, either way may hold
     if facing is not None:
@@ -204,15 +223,40 @@ def edge_pairs(profiles: np.ndarray, step: float, half_width, *, polarity: int,
         return replace(pairs, facing=facing)
     rising = _best_pairs(grad, grad, **kw)
     falling = _best_pairs(-grad, -grad, **kw)
-    take = falling.strength > rising.strength
+    # a hollow tube's lumen walls step the other way from its outer ones, and
+    # may step more strongly (where a wall is thin its two lines cancel): a
+    # pair lying within the other way's pair gives way to it, if that one is
+    # at least half as strong
+    up = np.where(rising.valid, rising.strength, 0.0)
+    down = np.where(falling.valid, falling.strength, 0.0)
+    up = np.where(_encloses(falling, rising) & (down >= 0.5 * up), 0.0, up)
+    down = np.where(_encloses(rising, falling) & (up >= 0.5 * down), 0.0, down)
+    if directions is None:
+        take = down > up
+    else:
+        theta = np.angle(np.asarray(directions))
+        grid = np.radians(np.arange(0.0, 360.0, 2.0))
+        c = np.cos(theta[:, None] - grid[None, :])
+        # (a profile nearly square to the shear counts for neither way: else
+        # a straight tube's nearly parallel profiles could be split in two)
+        found = np.where(c >= 0, up[:, None], down[:, None]) * (np.abs(c) >= FADED_COS)
+        shear = grid[np.argmax(found.sum(axis=0))]
+        take = np.cos(theta - shear) < 0
     return Edges(*(np.where(take, f, r) for f, r in zip(
         (falling.centre, falling.width, falling.strength, falling.valid),
         (rising.centre, rising.width, rising.strength, rising.valid), strict=True)),
         facing=np.where(take, -1.0, 1.0))
 
 
+def _encloses(outer: Edges, inner: Edges) -> np.ndarray:
+    """Where both pairs were found and ``outer``'s edges lie outside ``inner``'s."""
+    return (outer.valid & inner.valid
+            & (outer.centre - 0.5 * outer.width < inner.centre - 0.5 * inner.width)
+            & (outer.centre + 0.5 * outer.width > inner.centre + 0.5 * inner.width))
+
+
 def _best_pairs(left, right, *, step, half_width, window, width_tol, min_strength,
-                n_peaks, gaps) -> Edges:
+                n_peaks, gaps, widest=False) -> Edges:
     """:func:`edge_pairs` given each side's inward steps (NaN: no edge there,
     only if ``gaps``)."""
     if gaps:
@@ -232,8 +276,11 @@ def _best_pairs(left, right, *, step, half_width, window, width_tol, min_strengt
           & np.isfinite(strength) & (strength > min_strength))
     score = np.where(ok, strength, -np.inf).reshape(m, -1)
     best = score.max(axis=1, keepdims=True)
-    near = np.where(score >= 0.7 * best, np.abs(centre).reshape(m, -1), np.inf)
-    pick = np.argmin(near, axis=1)
+    strong = score >= 0.7 * best
+    if widest:
+        pick = np.argmax(np.where(strong, width.reshape(m, -1), -np.inf), axis=1)
+    else:
+        pick = np.argmin(np.where(strong, np.abs(centre).reshape(m, -1), np.inf), axis=1)
     rows = np.arange(m)
     valid = np.isfinite(best[:, 0])
     def chosen(a):

@@ -27,7 +27,7 @@ from .centreline import (
     knot_vector,
     resample,
 )
-from .profiles import Edges, edge_pairs, end_edge, sample_lines, sample_strips
+from .profiles import FADED_COS, Edges, edge_pairs, end_edge, sample_lines, sample_strips
 
 #: Each edge profile is the mean of this many parallel lines, spread over
 #: ±:data:`STRIP_HALF_PX` along the tube. The profiles lie 2–12 px apart,
@@ -48,7 +48,7 @@ NOISE_REF_PX = 0.05 / np.sqrt(STRIP_LINES)
 #: the shear (|cos| below it) sees the tube's edges at under this fraction of
 #: their full step: the tube fades there, and such profiles neither pull the
 #: fit nor count against it.
-RELIEF_MIN_COS = 0.3
+RELIEF_MIN_COS = FADED_COS
 #: The shear of a relief is taken once the tube's edges pin it down to a run
 #: of directions no wider than this, deg.
 RELIEF_MAX_SPREAD_DEG = 30.0
@@ -322,7 +322,7 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
         profiles = sample_strips(image, smp.z[idx] - shift, normals, offsets, strips)
         facing, shown = look.facing(normals)
         edges = edge_pairs(profiles, step, hw_u, polarity=look.polarity, window=window,
-                           smooth_px=look.smooth_px, facing=facing,
+                           smooth_px=look.smooth_px, facing=facing, directions=normals,
                            width_tol=width_tol, min_strength=min_strength)
         dropped = np.zeros(idx.size, bool)
         if avoid_contact:
@@ -610,7 +610,9 @@ def _tip_offset(image, smp, shift, look: TubeLook, window: float, step: float, *
     tangent = smp.tangent[-1]
     normal = 1j * tangent
     # across the whole end face: a hollow tube's end is strongest near its walls
-    lateral = np.array([-0.7, -0.4, 0.0, 0.4, 0.7]) * hw
+    relief = look.polarity == 0
+    lateral = np.array([-0.85, -0.7, -0.4, 0.0, 0.4, 0.7, 0.85] if relief
+                       else [-0.7, -0.4, 0.0, 0.4, 0.7]) * hw
     starts = smp.z[-1] - shift + normal * lateral
     reach = window + 0.5 * hw if tip_window is None else tip_window
     half = reach + 0.5 * hw + 3.0
@@ -622,7 +624,15 @@ def _tip_offset(image, smp, shift, look: TubeLook, window: float, step: float, *
     good = np.isfinite(off) & (strength > 0.25 * look.strength)
     if good.sum() < 2:
         return 0.0, False
-    coarse = float(np.median(off[good]))
+    if relief:
+        # an end face square to the shear fades, and the lines across the lumen
+        # stop at the lumen's end (a sealed tip's plug) instead: the lines
+        # within the walls, where the walls' relief stops, reach the end. The
+        # second farthest, so that one stray step does not set it
+        strongest = np.argsort(np.where(good, strength, -np.inf))[::-1][:3]
+        coarse = float(np.median(off[strongest[good[strongest]]]))
+    else:
+        coarse = float(np.median(off[good]))
     if look.smooth_px <= TIP_FOCUS_PX:
         return coarse, True
     # edge focusing (coarse to fine): the wide filter a noisy frame needs to find

@@ -64,6 +64,9 @@ def _stress_scenes() -> dict:
         "stress_opaque_diagonal": default_scene(1, n_frames=16, seed=42, look="opaque",
                                                 base_angle_deg=-45.0, mirror=True,
                                                 width=700, height=700),
+        # differential interference contrast: lit on one flank, shaded on the other
+        "stress_dic": default_scene(3, n_frames=24, seed=25, look="dic", base_angle_deg=150.0,
+                                    width=640, height=480),
     }
 
 
@@ -201,7 +204,7 @@ def write_reports(out_dir, *, benchmarks: bool = False, quiet: bool = True, demo
             errors["true_bend_deg"] = truth["bend_angle_deg"].to_numpy()
             errors.insert(0, "scene", r.name)
             per_frame.append(errors)
-        say("tracking stress scenes (fluorescent, low contrast, blur+noise) ...")
+        say("tracking stress scenes (fluorescent, low contrast, blur+noise, DIC, ...) ...")
         for name, scene in _stress_scenes().items():
             run, errors, acc = _track_scene(scene, name, work)
             from .render import truth_tables

@@ -50,6 +50,45 @@ def test_a_relief_s_edge_pair_is_found_only_as_a_relief(facing):
         assert (off > 1.0).all()
 
 
+def test_a_hollow_relief_tube_is_measured_at_its_outer_walls():
+    # a hollow rod, walls 3 px thick: its lumen's walls step the other way from
+    # its outer ones, and more strongly (a thin wall's two lines cancel)
+    from scipy.ndimage import gaussian_filter1d
+
+    step = 0.25
+    x = np.arange(-20, 20 + step / 2, step)
+    path = (2 * np.sqrt(np.clip(10.0**2 - x**2, 0, None))
+            - 2 * np.sqrt(np.clip(7.0**2 - x**2, 0, None)))
+    clean = 0.5 + 0.05 * np.gradient(gaussian_filter1d(path, 1.0 / step), step)
+    prof = clean[None, :] + np.random.default_rng(5).normal(0, 0.01, (40, x.size))
+    kw = dict(polarity=0, window=3.0, width_tol=0.3)
+    outer = edge_pairs(prof, step, 9.0, facing=np.full(40, 1.0), **kw)
+    lumen = edge_pairs(prof, step, 9.0, facing=np.full(40, -1.0), **kw)
+    assert np.allclose(lumen.width, 15.5, atol=1.0)   # (lumen 14 px, a blur each side)
+    assert (lumen.strength > 1.3 * outer.strength).all()
+    # the lumen's pair lies within the outer one: the outer pair is taken,
+    # on every profile alone, and told the profiles' directions (all alike)
+    for found in (edge_pairs(prof, step, 9.0, **kw),
+                  edge_pairs(prof, step, 9.0, directions=np.full(40, np.exp(0.3j)), **kw)):
+        assert found.valid.all() and (found.facing == 1.0).all()
+        assert np.allclose(found.width, 20.0, rtol=0.1)
+        assert np.abs(found.centre).max() < 0.3
+
+
+def test_a_straight_relief_tube_is_read_one_way_all_along():
+    # told the profiles' directions, nearly parallel profiles all step one way,
+    # even where noise makes the other way's pairs stronger on a few
+    prof = np.stack([_relief_profile(facing=1.0) for _ in range(30)])
+    prof = prof + np.random.default_rng(2).normal(0, 0.004, prof.shape)
+    flip = np.zeros(30, bool)
+    flip[[3, 11, 12, 25]] = True
+    prof[flip] = 1.0 - prof[flip]   # four profiles that step down (e.g. dust)
+    directions = np.exp(1j * np.radians(np.linspace(-3, 3, 30)))
+    found = edge_pairs(prof, 0.25, 10.0, polarity=0, window=5.0, directions=directions)
+    assert (found.facing == 1.0).all()
+    assert not found.valid[flip].any() and found.valid[~flip].all()
+
+
 def test_a_relief_s_end_is_the_middle_of_its_line():
     # an end face is a step of the path length: in relief a bright line, whose
     # outer flank lies a blur beyond the face

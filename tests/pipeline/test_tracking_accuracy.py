@@ -105,6 +105,9 @@ LOOK_CASES = {
     "dust": dict(sample=3, look={"dust": 80}, **SMALL),
     "blur": dict(sample=3, look={"blur_px": 1.0}, **SMALL),
     "flicker": dict(sample=3, look={"flicker": 0.05}, **SMALL),
+    # differential interference contrast: lit on one flank, shaded on the other,
+    # the lumen's walls as strong as the outer ones
+    "dic": dict(sample=3, look="dic", **SMALL),
 }
 
 
