@@ -246,6 +246,12 @@ class FrameTrack:
     crossing : bool
         The predicted tube touched or crossed itself, so the profiles near
         the contact were left out.
+    polarity : int or None
+        The look learnt, on frames that (re)started the tracker: −1 dark
+        edges, +1 bright, 0 a relief (see :class:`pipeline.refine.TubeLook`).
+    shear_deg : float
+        A relief's shear direction, deg (y up), on the frame that made it
+        known (:func:`pipeline.refine.relief_shear`); NaN on the others.
     """
 
     frame: int
@@ -258,6 +264,8 @@ class FrameTrack:
     base_source: str = ""
     smooth_px: float = float("nan")
     crossing: bool = False
+    polarity: int | None = None
+    shear_deg: float = float("nan")
 
     @property
     def ok(self) -> bool:
@@ -628,6 +636,8 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
             lost_run = 0
             if look.polarity == 0 and look.shear is None and not result.crossing:
                 look = shear_votes.add(as_float(frame), result.curve, look)
+                if look.shear is not None:
+                    result = replace(result, shear_deg=float(np.degrees(look.shear)))
             if not result.crossing:
                 ratio = section_ratio(result.curve)
                 tip_ratio = None if ratio is None else (result.curve.joints, ratio)
@@ -787,7 +797,7 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
                 widths.joints = r.curve.joints
         return (FrameTrack(index, status, r.curve if status == "ok" else None, "init",
                            r.residual_px, r.valid_fraction, base_source=source,
-                           smooth_px=look.smooth_px), look)
+                           smooth_px=look.smooth_px, polarity=look.polarity), look)
     hw = look.mean_half_width
     pred = _predict(history)
     last_length = history[-1].length

@@ -228,6 +228,7 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
     stages = Counter(r.stage for r in results if r.stage)
     notes = _notes(results, stages, base_hint is not None, rate)
     notes.append(_joints_note(results, sample))
+    notes.append(_look_note(results))
     notes.append(_smoothing_note(results))
     if motion_note:
         notes.append(motion_note)
@@ -324,6 +325,26 @@ def _joints_note(results, sample) -> str:
                 f"{JOINT_CHECK_DEG:g} deg)")
     return ("section joints: none found (the tube's width did not step, nor its curvature on "
             f"frames bent >= {JOINT_CHECK_DEG:g} deg); give --sample to use its sections")
+
+
+def _look_note(results) -> str:
+    """How the tube looked: which edges the tracker followed."""
+    names = {-1: "darker than its surroundings at its edges (transmitted light, an opaque "
+                 "tube)",
+             1: "brighter than its surroundings at its edges (fluorescence)",
+             0: "a relief (differential interference contrast): lit on one flank, shaded on "
+                "the other, both edges stepping the same way"}
+    seen = [r.polarity for r in results if r.polarity is not None]
+    if not seen:
+        return "tube look: no start found a tube"
+    note = "tube look: " + "; then ".join(names[p] for p in dict.fromkeys(seen))
+    shear = [(r.frame, r.shear_deg) for r in results if np.isfinite(r.shear_deg)]
+    if 0 in seen:
+        note += (f"; its shear at {shear[0][1]:.0f} deg (y up), told on frame {shear[0][0]}: "
+                 "where the tube runs along it, it fades and is bridged" if shear else
+                 "; its shear never told (the tube never turned across it): each frame's "
+                 "edges were read the one way that fits them best")
+    return note
 
 
 def _smoothing_note(results) -> str:

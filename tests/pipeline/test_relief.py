@@ -181,6 +181,9 @@ def test_a_bending_relief_tube_is_followed_frame_to_frame():
     assert all(r.ok for r in results), [r.status for r in results]
     errors = np.abs(np.degrees([r.curve.coef[-1] for r in results]) - np.degrees(kappas * LENGTH))
     assert np.median(errors) <= 0.5 and errors.max() <= 1.0, errors
+    # the shear is told once, when the tube has turned across it
+    told = [r.shear_deg for r in results if np.isfinite(r.shear_deg)]
+    assert len(told) == 1 and abs(told[0] - np.degrees(SHEAR_ALONG)) < 5.0
 
 
 def test_a_relief_look_needs_a_finite_shear():

@@ -165,3 +165,20 @@ def test_the_run_says_which_edge_smoothing_each_start_chose():
     assert "over 0.8, 1.6 px, chosen afresh at each start" in _smoothing_note(
         [start(1.6), later, start(0.8)])
     assert _smoothing_note([later]) == "edge profiles: no start found a tube"
+
+
+def test_the_run_says_how_the_tube_looked():
+    from pipeline.track import FrameTrack
+    from pipeline.tracks import _look_note
+
+    def start(polarity):
+        return FrameTrack(0, "ok", None, "init", polarity=polarity)
+
+    later = FrameTrack(1, "ok", None, "fast")
+    assert "darker than its surroundings" in _look_note([start(-1), later])
+    assert "brighter than its surroundings" in _look_note([start(1), later])
+    relief = _look_note([start(0), later])
+    assert "relief" in relief and "shear never told" in relief
+    told = FrameTrack(5, "ok", None, "fast", shear_deg=-44.6)
+    assert "its shear at -45 deg (y up), told on frame 5" in _look_note([start(0), later, told])
+    assert _look_note([later]) == "tube look: no start found a tube"
