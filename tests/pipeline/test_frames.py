@@ -206,6 +206,18 @@ def test_folder_of_lzw_tiffs_written_by_opencv_is_read(tmp_path):
     np.testing.assert_array_equal(np.stack(got), np.stack(frames))
 
 
+@pytest.mark.parametrize(("suffix", "lossless"), [(".pgm", True), (".webp", False),
+                                               (".jp2", False), (".pnm", True)])
+def test_a_folder_of_other_image_formats_is_read(tmp_path, suffix, lossless):
+    frames = [(255 * smooth(phase=k)).astype(np.uint8) for k in range(3)]
+    for k, img in enumerate(frames):
+        assert cv2.imwrite(str(tmp_path / f"f{k}{suffix}"), img)
+    reader, got = read_all(tmp_path)
+    assert len(got) == 3 and got[0].dtype == np.uint8
+    np.testing.assert_allclose(np.stack(got).astype(int), np.stack(frames).astype(int),
+                               atol=0 if lossless else 8)
+
+
 def test_stack_along_one_axis_is_frames_whatever_its_label(tmp_path):
     # tifffile labels a plain ImageJ stack as channels; ImageJ, as slices
     stack = np.stack([ramp8(k=k) for k in range(4)])
