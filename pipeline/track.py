@@ -231,7 +231,8 @@ class FrameTrack:
         The centreline, px (y up), when measured.
     stage : str
         The deepest stage the frame needed: init, fast, crossing, wide,
-        redetect (or "" when not measured).
+        redetect, backward (found from a later frame's shape, when lost on the
+        way forward before the tracker's start) (or "" when not measured).
     residual_px : float
         RMS offset of the edge midpoints from the fitted centreline, px.
     valid_fraction : float
@@ -753,7 +754,8 @@ def _refitted(pending, base: complex | None, turn: float, look: TubeLook | None,
               settings: TrackSettings) -> list[FrameTrack]:
     """The held-back results, each measured frame refitted from its base moved
     to ``base`` and its base tangent turned by ``turn`` (kept as it was if that
-    fit fails the checks); the frame that found the base says it was moved."""
+    fit fails the checks); the frame that found the base says it was moved.
+    Frames lost before a measured one are then tracked backwards from it."""
     out = []
     for result, image in pending:
         if (base is None and not turn) or not result.ok or look is None:
@@ -773,7 +775,41 @@ def _refitted(pending, base: complex | None, turn: float, look: TubeLook | None,
                    avoid_contact=result.crossing, tol_px=settings.tol_px)
         out.append(replace(result, curve=r.curve, residual_px=r.residual_px,
                            valid_fraction=r.valid_fraction) if _good(r, look) else result)
+    # a frame lost before a later one was measured (a first frame the tracker
+    # could not start on, that the next one started on) is tracked backwards
+    # from the nearest measured frame after it
+    later = None
+    for i in range(len(out) - 1, -1, -1):
+        if out[i].ok:
+            later = out[i].curve
+        elif later is not None and look is not None:
+            r = _from_later(pending[i][1], later, look, settings)
+            if r is not None:
+                out[i] = FrameTrack(out[i].frame, "ok", r.curve, "backward", r.residual_px,
+                                    r.valid_fraction, crossing=self_contact(later,
+                                                                            look.mean_half_width))
+                later = r.curve
     return out
+
+
+def _from_later(image: np.ndarray, later: Curve, look: TubeLook,
+                settings: TrackSettings) -> Refined | None:
+    """The tube in ``image`` found from the shape of a later frame, as the wide
+    and redetect searches would from an earlier one; None if the fits fail the
+    checks (or change the length by over :data:`MAX_LENGTH_STEP`)."""
+    hw = look.mean_half_width
+
+    def accept(r: Refined | None) -> bool:
+        return (r is not None and _good(r, look)
+                and abs(r.curve.length - later.length) <= MAX_LENGTH_STEP * later.length)
+
+    r = refine(image, later, look, window=1.5 * hw, iterations=10,
+               avoid_contact=self_contact(later, hw), tol_px=settings.tol_px)
+    if accept(r):
+        return r
+    # moved too far for that: found afresh from the later frame's base
+    r = _redetect(image, later, look, settings)
+    return r if accept(r) else None
 
 
 def _track_one(index, frame, look, history, base_hint, base_end, detection, settings,

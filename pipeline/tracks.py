@@ -297,6 +297,10 @@ def _notes(results, stages, base_given: bool, rate) -> list[str]:
         k = stages.get(stage, 0)
         notes.append(f"{stage} search ran on {k} of {n} frames" +
                      (f" ({why})" if k else " (never needed)"))
+    k = stages.get("backward", 0)
+    if k:
+        notes.append(f"tracked backwards on {k} of {n} frames (lost on the way forward, before "
+                     "a later frame started the tracker; found from that frame's shape)")
     if base_given:
         notes.append("base given: automatic base search left out")
     if not rate:

@@ -211,6 +211,29 @@ def test_a_fast_bend_right_after_the_start_is_still_followed(tmp_path, sample, s
     assert acc.length_error_max_pct <= LENGTH_ERROR_PCT
 
 
+@pytest.mark.parametrize("failed_starts", [1, 2])
+def test_frames_before_the_tracker_could_start_are_tracked_backwards(tmp_path, monkeypatch,
+                                                                     failed_starts):
+    """The first frames, on which the tube could not be found (here: made to
+    fail), are found from the shape of the first frame that started the
+    tracker, backwards, and meet the spec like the rest."""
+    import pipeline.track as track
+
+    calls = []
+    start = track.initialise
+
+    def failing(image, **kw):
+        calls.append(1)
+        return None if len(calls) <= failed_starts else start(image, **kw)
+
+    monkeypatch.setattr(track, "initialise", failing)
+    errors, acc, tracks, truth = _render_and_track(tmp_path, 3, seed=1, **SMALL)
+    assert list(tracks[S.STATUS]) == [S.STATUS_OK] * SMALL["n_frames"]
+    _assert_meets_spec(errors, acc)
+    run = json.loads((tmp_path / "tracked" / S.RUN_FILE).read_text())
+    assert any(f"tracked backwards on {failed_starts} of" in n for n in run["left_out_and_why"])
+
+
 # -- the committed scenes ------------------------------------------------------------------------
 @pytest.mark.parametrize("name", ["sample1", "sample2", "sample3"])
 def test_committed_scenes_meet_the_spec(tmp_path, name):
