@@ -185,12 +185,12 @@ def edge_pairs(profiles: np.ndarray, step: float, half_width, *, polarity: int,
     facing : (M,) ndarray of ±1, optional
         With ``polarity=0``: which way each profile's edges step (+1: up
         along the profile, where its direction faces the relief's shear);
-        not given, both are tried: the stronger pair is kept, or, given the
-        profiles' ``directions``, the way every profile steps is the one a
-        single shear direction would give that finds the strongest pairs in
-        all (a straight tube's profiles all step alike: a hollow
-        tube's lumen walls, stepping the other way, must not take over where
-        its walls are thin).
+        not given, both are tried and the stronger pair kept (but a pair
+        within the other way's gives way to it if that is at least half as
+        strong: a hollow tube's lumen, whose walls step the other way), or,
+        given the profiles' ``directions``, every profile steps the way that
+        one shear direction would make it, the one that finds the strongest
+        pairs in all (a straight tube's profiles all step alike).
     directions : (M,) complex ndarray, optional
         The profiles' directions (unit, y up), for ``polarity=0``.
 
@@ -210,23 +210,22 @@ def edge_pairs(profiles: np.ndarray, step: float, half_width, *, polarity: int,
     if polarity != 0:
         # entering the tube from the −offset side, and from the +offset side
         return _best_pairs(polarity * grad, -polarity * grad, **kw)
-    # a hollow tube's lumen walls step the same way as its outer ones, as
-    # strongly and, with thin walls, a pair of them within the width's
-    # tolerance: of the strong pairs the widest is the outer one (measured on
-    # sample 2 in relief: the midline 1.4 px off over its thin-walled section)
-    kw["widest"] = True
     # relief: both edges step the same way along the profile, the way the
-    # normal faces the shear; not knowing that, either way may hold
+    # profile faces the shear. A hollow tube also shows its lumen's walls: one
+    # way, an outer wall paired with a lumen wall is as strong as the outer
+    # pair and, where the walls are thin, within the width's tolerance, so of
+    # the strong pairs the widest is taken (sample 2 in relief: the midline
+    # 1.4 px off over its thin-walled section without this)
+    kw["widest"] = True
     if facing is not None:
         facing = np.asarray(facing, dtype=float)
         pairs = _best_pairs(facing[:, None] * grad, facing[:, None] * grad, **kw)
         return replace(pairs, facing=facing)
     rising = _best_pairs(grad, grad, **kw)
     falling = _best_pairs(-grad, -grad, **kw)
-    # a hollow tube's lumen walls step the other way from its outer ones, and
-    # may step more strongly (where a wall is thin its two lines cancel): a
-    # pair lying within the other way's pair gives way to it, if that one is
-    # at least half as strong
+    # the lumen's own pair steps the other way, and may step more strongly
+    # (where a wall is thin its two lines cancel): a pair lying within the
+    # other way's gives way to it, if that one is at least half as strong
     up = np.where(rising.valid, rising.strength, 0.0)
     down = np.where(falling.valid, falling.strength, 0.0)
     up = np.where(_encloses(falling, rising) & (down >= 0.5 * up), 0.0, up)

@@ -122,9 +122,9 @@ class TubeLook:
         noise (see :func:`pipeline.track.edge_scale`).
     shear : float, optional
         With ``polarity`` 0 (a relief image: differential interference
-        contrast, oblique light), the direction in which the tube's flank
-        facing it shows bright, rad, counter-clockwise from +x (y up); see
-        :func:`relief_shear`. Where the tube runs along it, its edges fade.
+        contrast, oblique light), the shear direction: a flank whose inward
+        normal faces it shows bright, rad, counter-clockwise from +x (y up);
+        see :func:`relief_shear`. Where the tube runs along it, its edges fade.
     """
 
     polarity: int
@@ -327,8 +327,8 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
         dropped = np.zeros(idx.size, bool)
         if avoid_contact:
             dropped = contact_mask(smp.z, idx, reach=hw * (2 + width_tol) + window + 2.0,
-                                gap=basis.u[1] * curve.length, normals=normals,
-                                half_width=hw)
+                                   gap=basis.u[1] * curve.length, normals=normals,
+                                   half_width=hw)
         if shown is None and look.polarity == 0:
             # a relief whose shear is not known yet: this frame's own edges may
             # tell it (where the tube runs along it, and fades, for the first time)
@@ -562,8 +562,8 @@ def relief_shear(theta: np.ndarray, signed: np.ndarray) -> float | None:
     down where it is < 0. Every e (on a 0.5° grid) is scored by the steps
     ``signed`` (:func:`relief_edges`, of one frame or several) whose sign it
     gets wrong, plus the profiles that found no edges where it expects a
-    step (|cos| ≥ :data:`RELIEF_MIN_COS`); the middle of the best-scored run of e is
-    taken. The step's size is not used: it saturates on strong edges.
+    step (|cos| ≥ :data:`RELIEF_MIN_COS`); the middle of the best-scored run
+    of e is taken. The step's size is not used: it saturates on strong edges.
 
     Returns
     -------
@@ -626,9 +626,9 @@ def _tip_offset(image, smp, shift, look: TubeLook, window: float, step: float, *
         return 0.0, False
     if relief:
         # an end face square to the shear fades, and the lines across the lumen
-        # stop at the lumen's end (a sealed tip's plug) instead: the lines
-        # within the walls, where the walls' relief stops, reach the end. The
-        # second farthest, so that one stray step does not set it
+        # then stop at the lumen's end (a sealed tip's plug); the lines within
+        # the walls, where the walls' strong relief stops, reach the end: the
+        # median of the three lines whose end steps are strongest
         strongest = np.argsort(np.where(good, strength, -np.inf))[::-1][:3]
         coarse = float(np.median(off[strongest[good[strongest]]]))
     else:
