@@ -140,6 +140,7 @@ VIDEO = "<video>"  # stands for the rendered scene's frames.avi
 
 @pytest.mark.parametrize("args, match", [
     (["missing.avi", "--um-per-px", "10"], "missing.avi: no such file or folder"),
+    (["missing.avi"], "missing.avi: no such file or folder"),  # before the missing scale
     (["empty.avi", "--um-per-px", "10"], "empty.avi: empty file (0 bytes)"),
     (["random.avi", "--um-per-px", "10"], "random.avi: not a readable video"),
     (["empty_folder", "--um-per-px", "10"], "empty_folder: the folder holds no images"),
