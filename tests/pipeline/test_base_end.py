@@ -193,3 +193,17 @@ def test_a_faint_pipette_as_wide_as_noise_allows_is_not_tracked(tmp_path):
     assert acc.frames_lost == 0
     assert acc.base_error_max_px < 2.0
     assert acc.length_error_max_pct < 1.0
+
+
+@pytest.mark.parametrize("polarity", [-1, 1])
+def test_a_base_given_where_no_pipette_shows_is_where_the_tube_starts(polarity):
+    # the skeleton of a tube that starts free in the image stops a half-width
+    # short of that end: the base given is where the tube is taken to start
+    from tests.pipeline.synthetic import tube_image
+
+    base = 120 - 300j
+    img = tube_image((400, 640), base, 0.2, 380.0, 1 / 400, 14.0, polarity=polarity,
+                     noise=0.01)
+    det = detect(img, base_hint=(base.real, -base.imag))
+    assert abs(det.base - base) < 1.0
+    assert det.base_source == "given (--base)"
