@@ -295,7 +295,7 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
     """
     hw = look.mean_half_width
     window = 0.5 * hw if window is None else window
-    shift = complex(origin[0], -origin[1])  # full frame → crop, y up
+    shift = _crop_shift(origin)
     basis = basis_of(curve)
     idx, offsets, step = _profile_layout(curve, look, basis.n_grid, window, width_tol)
     u = basis.u[idx]
@@ -478,11 +478,7 @@ def edges_at(image: np.ndarray, curve: Curve, look: TubeLook, u: np.ndarray, *,
     (offsets from the curve, px), as ``look`` finds them; ``image`` may be a
     crop whose top-left pixel is at ``origin`` (col, row) of the frame."""
     u = np.asarray(u, dtype=float)
-    basis = basis_of(curve)
-    smp = evaluate(curve, basis)
-    z = np.interp(u, basis.u, smp.z.real) + 1j * np.interp(u, basis.u, smp.z.imag)
-    z = z - complex(origin[0], -origin[1])  # full frame → crop, y up
-    normal = 1j * np.exp(1j * np.interp(u, basis.u, smp.phi))
+    z, normal = _across(curve, u, origin)
     hw = look.mean_half_width
     window = 0.3 * hw
     offsets, step = _profile_offsets(hw, window, width_tol)
@@ -536,19 +532,33 @@ def relief_edges(image: np.ndarray, curve: Curve, look: TubeLook, *,
         found (where the tube runs along the shear its edges fade).
     """
     u = np.linspace(0.02, 0.98, 96)
+    e = edges_at(image, curve, replace(look, polarity=0, shear=None), u, origin=origin)
+    z, normal = _across(curve, u, origin)
+    # (the profiles as edges_at lays them out: wholly inside the image, or left out)
+    offsets, _ = _profile_offsets(look.mean_half_width, 0.3 * look.mean_half_width, 0.3)
+    ends = z[:, None] + normal[:, None] * offsets[[0, -1]][None, :]
+    rows, cols = image.shape[:2]
+    inside = ((ends.real >= 0) & (ends.real <= cols - 1)
+              & (-ends.imag >= 0) & (-ends.imag <= rows - 1)).all(axis=1)
+    signed = np.where(e.valid, e.facing * e.strength, 0.0)
+    return np.angle(normal[inside]), signed[inside]
+
+
+def _across(curve: Curve, u: np.ndarray, origin) -> tuple[np.ndarray, np.ndarray]:
+    """Points of ``curve`` at fractions ``u`` of its length in a crop whose
+    top-left pixel is at ``origin`` (col, row) of the frame, and the left
+    normals there (px, y up)."""
     basis = basis_of(curve)
     smp = evaluate(curve, basis)
     z = np.interp(u, basis.u, smp.z.real) + 1j * np.interp(u, basis.u, smp.z.imag)
-    z = z - complex(origin[0], -origin[1])
-    normal = 1j * np.exp(1j * np.interp(u, basis.u, smp.phi))
-    hw = look.mean_half_width
-    offsets, step = _profile_offsets(hw, 0.3 * hw, 0.3)
-    prof = sample_lines(image, z, normal, offsets)
-    e = edge_pairs(prof, step, look.half_width_at(u), polarity=0, smooth_px=look.smooth_px,
-                   window=0.3 * hw, width_tol=0.3, min_strength=0.25 * look.strength)
-    inside = ~np.isnan(prof).any(axis=1)
-    signed = np.where(e.valid, e.facing * e.strength, 0.0)
-    return np.angle(normal[inside]), signed[inside]
+    return z - _crop_shift(origin), 1j * np.exp(1j * np.interp(u, basis.u, smp.phi))
+
+
+def _crop_shift(origin) -> complex:
+    """Where a crop whose top-left pixel is at ``origin`` (col, row) of the
+    frame starts, in the frame's y-up px: subtracted, it takes frame points
+    into the crop."""
+    return complex(origin[0], -origin[1])
 
 
 def relief_shear(theta: np.ndarray, signed: np.ndarray) -> float | None:
@@ -720,7 +730,7 @@ def locate_base(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0,
     # tube's, the width learnt there is partly the pipette's (a low-contrast
     # 320×240 scene: base 19 px into the pipette, length +12 %)
     hw = float(look.half_width_at(min(reach, 0.5 * curve.length) / curve.length))
-    shift = complex(origin[0], -origin[1])
+    shift = _crop_shift(origin)
     axis = np.exp(1j * curve.base_angle)
     step = 0.5
     s = np.arange(-reach, min(reach, 0.5 * curve.length), step)
