@@ -52,6 +52,16 @@ RELIEF_MIN_COS = FADED_COS
 #: The shear of a relief is taken once the tube's edges pin it down to a run
 #: of directions no wider than this, deg.
 RELIEF_MAX_SPREAD_DEG = 30.0
+#: The pipette's axis (:func:`pipette_axis`) is read over this many tube
+#: widths behind the base, and trusted when at least PIPETTE_MIN_PROFILES of
+#: its profiles agree to PIPETTE_MAX_SCATTER_PX (RMS about a line) and it
+#: turns the base tangent by at most PIPETTE_MAX_TURN_DEG.
+PIPETTE_WIDTHS = 8.0
+PIPETTE_MIN_PROFILES = 10
+PIPETTE_MAX_SCATTER_PX = 0.3
+PIPETTE_MAX_TURN_DEG = 3.0
+#: ... and the axis's direction is known to this standard error, deg.
+PIPETTE_MAX_SE_DEG = 0.1
 #: Extra weight of the roughness penalty over the last :data:`TIP_STIFF_WIDTHS`
 #: tube widths: the curvature there is held all but constant, so the tip
 #: tangent is the continuation of the arc before it rather than the slope of
@@ -710,6 +720,63 @@ def self_contact(curve: Curve, half_width: float) -> bool:
     gap = basis.u[1] * curve.length
     idx = np.arange(0, z.size, max(1, int(half_width / (2 * gap))))
     return bool(contact_mask(z, idx, reach=2.2 * half_width, gap=gap).any())
+
+
+def pipette_axis(image: np.ndarray, curve: Curve, look: TubeLook, *,
+                 origin=(0.0, 0.0)) -> tuple[float, complex] | None:
+    """The axis of the pipette that holds the tube, or None.
+
+    The tube leaves the pipette along its axis, so the axis is the base
+    tangent, measured apart from the tube's bend (a base tangent fitted to a
+    bent tube leans 0.6-0.7° into the bend). Profiles across the base axis
+    behind the base, over :data:`PIPETTE_WIDTHS` of the tube's width, find the
+    pipette's edge pairs (at the narrower widths a pipette has), and a robust
+    line through their midpoints gives the axis. None unless at least
+    :data:`PIPETTE_MIN_PROFILES` agree to :data:`PIPETTE_MAX_SCATTER_PX`
+    (no pipette in view, or something else behind the base), or if the axis
+    is more than :data:`PIPETTE_MAX_TURN_DEG` off the curve's base tangent.
+
+    Returns
+    -------
+    (direction, base) or None
+        The axis's direction, rad (y up), pointing to the tube, and the point
+        on it abreast of the curve's base, full-frame px (y up): the tube
+        leaves the pipette on its axis.
+    """
+    hw = float(look.half_width[0])
+    axis = np.exp(1j * curve.base_angle)
+    s = np.arange(0.5 * hw, PIPETTE_WIDTHS * 2 * hw, max(1.0, hw / 6))
+    step = 0.25
+    offsets = np.arange(-1.2 * hw, 1.2 * hw + step / 2, step)
+    prof = sample_lines(image, curve.base - _crop_shift(origin) - s * axis,
+                        np.full(s.size, 1j * axis), offsets)
+    best = None
+    for ratio in (0.35, 0.5, 0.65, 0.8):
+        e = edge_pairs(prof, step, ratio * hw, polarity=look.polarity, window=0.4 * hw,
+                       width_tol=0.25, smooth_px=look.smooth_px,
+                       min_strength=0.25 * look.strength)
+        if best is None or e.valid.sum() > best.valid.sum():
+            best = e
+    keep = best.valid.copy()
+    for _ in range(3):
+        if keep.sum() < PIPETTE_MIN_PROFILES:
+            return None
+        slope, icpt = np.polyfit(s[keep], best.centre[keep], 1)
+        res = np.where(best.valid, best.centre - (slope * s + icpt), np.inf)
+        spread = MAD_TO_SD * np.median(np.abs(res[keep]))
+        keep = best.valid & (np.abs(res) <= max(3.0 * spread, 0.1))
+    if keep.sum() < PIPETTE_MIN_PROFILES or np.std(res[keep]) > PIPETTE_MAX_SCATTER_PX:
+        return None
+    # how well the line's direction is known: its slope's standard error
+    slope_se = np.std(res[keep]) / (np.sqrt(keep.sum()) * max(float(np.std(s[keep])), 1e-9))
+    if np.degrees(slope_se) > PIPETTE_MAX_SE_DEG:
+        return None
+    # offsets along the left normal grow by slope per px behind the base: the
+    # axis, pointing from the pipette to the tube, turns by −atan(slope)
+    turn = -np.arctan(slope)
+    if abs(turn) > np.radians(PIPETTE_MAX_TURN_DEG):
+        return None
+    return float(curve.base_angle + turn), complex(curve.base + 1j * axis * icpt)
 
 
 def locate_base(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0),

@@ -78,6 +78,7 @@ from .refine import (
     antisymmetry,
     edges_at,
     locate_base,
+    pipette_axis,
     profile_spacing,
     refine,
     relief_edges,
@@ -116,7 +117,9 @@ BASE_VOTE_FRAMES = 8
 #: A base moved by less than this (px) is left where it is.
 BASE_MOVE_MIN_PX = 0.25
 #: The base tangent likewise goes to the median of the first frames' own
-#: measurements of it (φ(0) fitted as at the start), of those bent at most
+#: measurements of it: the pipette's axis where it shows
+#: (:func:`pipeline.refine.pipette_axis`, at any bend); else φ(0) fitted as at
+#: the start, of those bent at most
 #: BASE_ANGLE_MAX_BEND_DEG (the strong roughness penalty pulls φ(0) with the
 #: bend: votes grew by 0.5-1.5° over the first 8 frames of some scenes, most
 #: where a joint lies near the base) and within BASE_ANGLE_SPREAD_DEG of the
@@ -129,6 +132,9 @@ BASE_MOVE_MIN_PX = 0.25
 BASE_ANGLE_MAX_BEND_DEG = 30.0
 BASE_ANGLE_SPREAD_DEG = 3.0
 BASE_ANGLE_MIN_VOTES = 3
+#: A base tangent turned by less than this (deg) is left as it is (the
+#: pipette's axis, measured on each of the first frames, varies by ~0.01°).
+BASE_TURN_MIN_DEG = 0.02
 #: Bend (deg) from which the tracker looks for the section joints, where the
 #: curvature steps, when they are not given; it looks again each time the bend
 #: has grown by :data:`JOINT_CHECK_GROWTH` (a step shows more the more it bends).
@@ -423,6 +429,14 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
             r = refine(image, rewritten(r.curve, joints, n_coef), look, iterations=6,
                        free_base=True, smoothing=BASE_SMOOTHING, tol_px=tol)
             r = refine(image, r.curve, look, iterations=4, tol_px=tol)
+    # the pipette's axis, where it shows, is the base tangent without the lean
+    # into the bend that a fit to a bent tube gives it (and the base lies on
+    # it: a base fitted to a bent tube may sit beside it)
+    axis = pipette_axis(image, r.curve, look)
+    if axis is not None:
+        direction, on_axis = axis
+        turned = _moved_base(r.curve, None, direction - r.curve.base_angle)
+        r = refine(image, replace(turned, base=on_axis), look, iterations=4, tol_px=tol)
     return r, look, source
 
 
@@ -703,8 +717,13 @@ class _BaseVotes:
             settings: TrackSettings) -> None:
         """This frame's findings, ``curve`` being its fit."""
         self.points.append(locate_base(image, curve, look).base)
-        # the base tangent as initialise measures it (φ(0) free, under the strong
-        # roughness penalty that makes it follow the whole tube)
+        # the base tangent as initialise measures it: the pipette's axis, at any
+        # bend; else φ(0) free, under the strong roughness penalty that makes it
+        # follow the whole tube
+        axis = pipette_axis(image, curve, look)
+        if axis is not None:
+            self.turns.append((0.0, axis[0] - curve.base_angle))
+            return
         fit = refine(image, curve, look, iterations=6, free_base=True,
                      smoothing=BASE_SMOOTHING, tol_px=settings.tol_px)
         if _good(fit, look):
@@ -736,7 +755,8 @@ def _settled_turn(angle_votes: list[tuple[float, float]]) -> float:
     near = [turn for bend, turn in angle_votes
             if bend <= np.radians(BASE_ANGLE_MAX_BEND_DEG)
             and abs(turn) <= np.radians(BASE_ANGLE_SPREAD_DEG)]
-    return float(np.median(near)) if len(near) >= BASE_ANGLE_MIN_VOTES else 0.0
+    turn = float(np.median(near)) if len(near) >= BASE_ANGLE_MIN_VOTES else 0.0
+    return turn if abs(turn) >= np.radians(BASE_TURN_MIN_DEG) else 0.0
 
 
 def _moved_base(curve: Curve, base: complex | None, turn: float = 0.0) -> Curve:

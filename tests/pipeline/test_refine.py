@@ -248,3 +248,29 @@ def test_a_noisy_sealed_tip_is_placed_at_its_end_not_pushed_beyond_it():
     r = refine(img.astype(np.float32), start, look, iterations=12, tol_px=0.005)
     assert r.tip_found
     assert abs(r.curve.length - length) < 0.45  # the wide filter alone: +0.65 px
+
+
+@pytest.mark.parametrize("polarity", [-1, 1])
+def test_the_pipette_s_axis_is_the_base_tangent(polarity):
+    from dataclasses import replace
+
+    from pipeline.refine import pipette_axis
+
+    # a tube bent from its base, held in a pipette 0.6 of its width, both along 0.3 rad
+    angle, kappa, hw = 0.3, 1 / 250, 12.0
+    base = 300 - 300j
+    img = tube_image(SHAPE, base, angle, 300.0, kappa, hw, polarity=polarity, noise=0.01,
+                     pipette_half_width=0.6 * hw)
+    z, _ = arc_axis(base, angle, 300.0, kappa)
+    look = TubeLook(polarity, np.full(5, hw), 0.05)
+    for lean, aside in ((np.radians(1.5), 0.0), (np.radians(-0.8), 2.5)):
+        # a base tangent leaning into the bend, as fitted to a bent tube, and a
+        # base beside the axis
+        curve = replace(fit_to_polyline(z, angle, n_coef=12), base_angle=angle + lean,
+                        base=base + 1j * np.exp(1j * angle) * aside)
+        direction, on_axis = pipette_axis(img, curve, look)
+        assert abs(np.degrees(direction - angle)) < 0.05
+        assert abs(on_axis - base) < 0.1
+    # no pipette in view: no axis
+    bare = tube_image(SHAPE, base, angle, 300.0, kappa, hw, polarity=polarity, noise=0.01)
+    assert pipette_axis(bare, fit_to_polyline(z, angle, n_coef=12), look) is None
