@@ -55,7 +55,9 @@ RELIEF_MAX_SPREAD_DEG = 30.0
 #: The pipette's axis (:func:`pipette_axis`) is read over this many tube
 #: widths behind the base, and trusted when at least PIPETTE_MIN_PROFILES of
 #: its profiles agree to PIPETTE_MAX_SCATTER_PX (RMS about a line) and it
-#: turns the base tangent by at most PIPETTE_MAX_TURN_DEG.
+#: turns the base tangent by at most PIPETTE_MAX_TURN_DEG. (Over 4 or 8
+#: widths, and a direction's standard error of 0.05° or 0.1°, measured on 153
+#: scenes: none flipped; 8 and 0.1° moved the most angle medians down.)
 PIPETTE_WIDTHS = 8.0
 PIPETTE_MIN_PROFILES = 10
 PIPETTE_MAX_SCATTER_PX = 0.3
@@ -733,8 +735,10 @@ def pipette_axis(image: np.ndarray, curve: Curve, look: TubeLook, *,
     pipette's edge pairs (at the narrower widths a pipette has), and a robust
     line through their midpoints gives the axis. None unless at least
     :data:`PIPETTE_MIN_PROFILES` agree to :data:`PIPETTE_MAX_SCATTER_PX`
-    (no pipette in view, or something else behind the base), or if the axis
-    is more than :data:`PIPETTE_MAX_TURN_DEG` off the curve's base tangent.
+    (no pipette in view, or something else behind the base) and give its
+    direction to :data:`PIPETTE_MAX_SE_DEG` (a short or faint pipette), or
+    if the axis is more than :data:`PIPETTE_MAX_TURN_DEG` off the curve's
+    base tangent.
 
     Returns
     -------
