@@ -8,7 +8,9 @@ sweeps away as the tube bends. So the end whose surroundings change least
 from the first frame is the base.
 
 The measure is the change from the first frame (smoothed by a quarter of the
-tube's width, in units of that smoothed change's own spread over the image),
+tube's width, in units of that smoothed change's own spread over the image;
+or its magnitude smoothed likewise, where that stands out more: in a relief
+the tube's lit and shaded flanks change with opposite signs and cancel),
 at its largest over the frames, along the tube's path within a half-width of
 each end. Not the temporal standard deviation: the tip leaves its first
 place for good (a step, whose deviation is small when it goes early), and on
@@ -81,9 +83,10 @@ def change_map(frames: Iterable[np.ndarray], smooth_px: float, *, target: int = 
     Returns
     -------
     change : (r, c) float64 ndarray
-        max over frames of |smoothed (frame − gain · first frame)|, each
-        frame's in units of its robust spread over the image (most of which
-        is static); the gain is the ratio of the frames' medians (flicker).
+        max over frames of |smoothed (frame − gain · first frame)| and of
+        smoothed |frame − gain · first frame| (each less its median), each
+        in units of its robust spread over the image (most of which is
+        static); the gain is the ratio of the frames' medians (flicker).
     factor : int
         Downsampling factor (full-frame px per working px).
     n : int
@@ -107,10 +110,15 @@ def change_map(frames: Iterable[np.ndarray], smooth_px: float, *, target: int = 
             continue
         # a flickering lamp scales the whole frame: as the (static) median does
         gain = float(np.median(small)) / max(float(np.median(first)), 1e-9)
-        diff = cv2.GaussianBlur(small - gain * first, (0, 0), sigma)
-        dev = np.abs(diff - np.median(diff))
-        spread = 1.4826 * float(np.median(dev))
-        np.maximum(out, dev / max(spread, 1e-9), out=out)
+        raw = small - gain * first
+        # smoothed as it is (noise averages out), and smoothed in magnitude: in
+        # a relief the tube's lit and shaded flanks change with opposite signs
+        # and cancel under the blur, on its centreline most of all
+        for diff in (cv2.GaussianBlur(raw, (0, 0), sigma),
+                     cv2.GaussianBlur(np.abs(raw), (0, 0), sigma)):
+            dev = np.abs(diff - np.median(diff))
+            spread = 1.4826 * float(np.median(dev))
+            np.maximum(out, dev / max(spread, 1e-9), out=out)
     if n == 0:
         return np.zeros((1, 1)), 1, 0
     return out, factor, n

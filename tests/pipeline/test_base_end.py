@@ -40,8 +40,12 @@ def test_one_frame_cannot_tell_the_ends_apart_without_a_pipette(tmp_path):
     assert det.base_source == AMBIGUOUS_BASE
 
 
-def test_the_static_end_is_the_base(tmp_path):
-    folder = _scene(tmp_path)
+@pytest.mark.parametrize("look", [INVISIBLE_PIPETTE, {"name": "dic", "pipette_depth": 0.0}],
+                         ids=["fluorescent", "dic"])
+def test_the_static_end_is_the_base(tmp_path, look):
+    # (in relief the tube's lit and shaded flanks change with opposite signs,
+    # which cancel on its centreline unless the change is taken in magnitude)
+    folder = _scene(tmp_path, look=look)
     frames = _frames(folder)
     det = detect(as_float(frames[0]))
     a, b = det.path[0], det.path[-1]
