@@ -193,3 +193,21 @@ def test_a_relief_look_needs_a_finite_shear():
         Look(mode="relief", shear_deg=float("nan"))
     with pytest.raises(ValueError, match="mode"):
         Look(mode="dic")
+
+
+def test_a_faint_relief_is_told_by_its_own_edges_where_the_skeleton_cannot_tell():
+    # a low-gain relief: the skeleton's curve sits off the tube's middle, and the
+    # profiles across it are not clearly odd; across the relief's own fit they are
+    from pipeline.centreline import fit_to_polyline as fit
+    from pipeline.segment import detect
+    from pipeline.track import TrackSettings, as_float, spline_size
+
+    scene = default_scene(1, n_frames=12, seed=700, width=640, height=480,
+                          look={"name": "dic", "absorption_per_px": 0.05})
+    image = as_float(Renderer(scene).frame(0))
+    det = detect(image)
+    n_coef = spline_size(det.length, det.half_width, (), TrackSettings(), known=False)
+    skeleton = fit(det.path, det.base_angle, n_coef=n_coef)
+    assert RELIEF_MAYBE <= antisymmetry(image, skeleton, det.half_width) < RELIEF_SURE
+    _, look, _ = initialise(image)
+    assert look.polarity == 0
