@@ -489,7 +489,13 @@ def edges_at(image: np.ndarray, curve: Curve, look: TubeLook, u: np.ndarray, *,
     """The tube's edge pairs across ``curve`` at fractions ``u`` of its length
     (offsets from the curve, px), as ``look`` finds them; ``image`` may be a
     crop whose top-left pixel is at ``origin`` (col, row) of the frame."""
-    u = np.asarray(u, dtype=float)
+    return _edges_across(image, curve, look, np.asarray(u, dtype=float), width_tol, origin)[0]
+
+
+def _edges_across(image, curve: Curve, look: TubeLook, u: np.ndarray, width_tol: float,
+                  origin):
+    """:func:`edges_at`'s edges, and the profiles' points on the curve (in the
+    crop), their directions and their sample offsets (px)."""
     z, normal = _across(curve, u, origin)
     hw = look.mean_half_width
     window = 0.3 * hw
@@ -498,7 +504,7 @@ def edges_at(image: np.ndarray, curve: Curve, look: TubeLook, u: np.ndarray, *,
                        smooth_px=look.smooth_px,
                        polarity=look.polarity, window=window, width_tol=width_tol,
                        min_strength=0.25 * look.strength)
-    return edges
+    return edges, z, normal, offsets
 
 
 def antisymmetry(image: np.ndarray, curve: Curve, half_width: float) -> float:
@@ -544,10 +550,9 @@ def relief_edges(image: np.ndarray, curve: Curve, look: TubeLook, *,
         found (where the tube runs along the shear its edges fade).
     """
     u = np.linspace(0.02, 0.98, 96)
-    e = edges_at(image, curve, replace(look, polarity=0, shear=None), u, origin=origin)
-    z, normal = _across(curve, u, origin)
-    # (the profiles as edges_at lays them out: wholly inside the image, or left out)
-    offsets, _ = _profile_offsets(look.mean_half_width, 0.3 * look.mean_half_width, 0.3)
+    e, z, normal, offsets = _edges_across(image, curve, replace(look, polarity=0, shear=None),
+                                          u, 0.3, origin)
+    # (the profiles wholly inside the image; the others are left out)
     ends = z[:, None] + normal[:, None] * offsets[[0, -1]][None, :]
     rows, cols = image.shape[:2]
     inside = ((ends.real >= 0) & (ends.real <= cols - 1)

@@ -648,6 +648,7 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
             # extrapolated)
             history = [rewritten(h, result.curve.joints, result.curve.coef.size)
                        for h in history]
+        image = None
         if pending is not None:
             # held back with its result until the base is settled (a copy: a
             # reader may hand out the same buffer for every frame)
@@ -657,7 +658,8 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
             history = (history + [result.curve])[-2:]
             lost_run = 0
             if look.polarity == 0 and look.shear is None and not result.crossing:
-                look = shear_votes.add(as_float(frame), result.curve, look)
+                image = as_float(frame) if image is None else image
+                look = shear_votes.add(image, result.curve, look)
                 if look.shear is not None:
                     result = replace(result, shear_deg=float(np.degrees(look.shear)))
             if not result.crossing:
