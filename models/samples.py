@@ -300,7 +300,11 @@ def load_sample_toml(path) -> Sample:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ValueError(f"sample file {path} is not valid TOML: {exc}") from None
-    return sample_from_dict(data, default_name=path.stem)
+    try:
+        return sample_from_dict(data, default_name=path.stem)
+    except ValueError as exc:
+        # (the fields' checks name the field; the file is named here)
+        raise ValueError(f"sample file {path}: {exc}") from None
 
 
 def get_sample(spec) -> Sample:

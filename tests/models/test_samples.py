@@ -60,8 +60,9 @@ def test_toml_sample_round_trip(tmp_path):
 def test_bad_toml_names_the_problem(tmp_path, edit, match):
     path = tmp_path / "bad.toml"
     path.write_text(TOML.replace(*edit))
-    with pytest.raises(ValueError, match=match):
+    with pytest.raises(ValueError, match=match) as err:
         load_sample_toml(path)
+    assert str(path) in str(err.value)  # which file, too
 
 
 def test_missing_file_and_unknown_id():
