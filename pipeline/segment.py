@@ -238,28 +238,34 @@ def fill_tube(mask: np.ndarray, max_radius: int | None = None, *, fill_ratio: fl
     if max_radius is None:
         max_radius = max(2, min(mask.shape) // 10)
     radii = [r for r in (0, 1, 2, 3, 4, 6, 8, 11, 16, 22, 32, 45, 64) if r <= max_radius]
-    widths, filled = [], []
-    for r in radii:
-        if r == 0:
-            closed = mask
-        else:
-            se = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
-            closed = cv2.morphologyEx(mask.astype(np.uint8), cv2.MORPH_CLOSE, se,
-                                      borderType=cv2.BORDER_REPLICATE).astype(bool)
-        comp = _largest(closed)
-        filled.append(comp)
-        widths.append(_mean_width(comp))
-    widths = np.array(widths)
+    cache = {}
+
+    def closed(i):
+        # closed lazily: the first radius that fills is usually small, and the
+        # large closings (up to 129 px across) cost the most
+        if i not in cache:
+            r = radii[i]
+            out = mask
+            if r:
+                se = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+                out = cv2.morphologyEx(mask.astype(np.uint8), cv2.MORPH_CLOSE, se,
+                                       borderType=cv2.BORDER_REPLICATE).astype(bool)
+            comp = _largest(out)
+            cache[i] = (comp, _mean_width(comp))
+        return cache[i]
+
     # a hollow tube's width jumps (rim → whole tube) once the radius reaches
     # half the gap between its rims; take the first such jump
     # (the rims may merge gradually first, so ask for a clear step followed by a
     # plateau rather than one fixed ratio)
     for i in range(1, len(radii)):
-        step = widths[i - 1] > 0 and widths[i] >= 1.25 * widths[i - 1]
-        plateau = i == len(radii) - 1 or widths[i + 1] <= plateau_ratio * widths[i]
-        if step and plateau and widths[i] > fill_ratio * radii[i]:
-            return filled[i], radii[i]
-    return filled[0], radii[0]
+        before, (filled, width) = closed(i - 1)[1], closed(i)
+        step = before > 0 and width >= 1.25 * before
+        if not (step and width > fill_ratio * radii[i]):
+            continue
+        if i == len(radii) - 1 or closed(i + 1)[1] <= plateau_ratio * width:
+            return filled, radii[i]
+    return closed(0)[0], radii[0]
 
 
 def _skeleton_graph(skel: np.ndarray):
