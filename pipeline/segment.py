@@ -220,6 +220,11 @@ def fill_lumen(mask: np.ndarray, *, elongation: float = 4.0) -> np.ndarray:
     return mask | lut[labels]
 
 
+#: A closing that changes the mask's area by at most this fraction is taken to
+#: leave its mean width in proportion (its skeleton is not redrawn).
+SAME_AREA = 0.01
+
+
 def fill_tube(mask: np.ndarray, max_radius: int | None = None, *, fill_ratio: float = 2.5,
               plateau_ratio: float = 1.12):
     """Join the rims of a hollow tube with the smallest closing that fills it.
@@ -251,7 +256,15 @@ def fill_tube(mask: np.ndarray, max_radius: int | None = None, *, fill_ratio: fl
                 out = cv2.morphologyEx(mask.astype(np.uint8), cv2.MORPH_CLOSE, se,
                                        borderType=cv2.BORDER_REPLICATE).astype(bool)
             comp = _largest(out)
-            cache[i] = (comp, _mean_width(comp))
+            area = int(comp.sum())
+            prev = cache.get(i - 1)
+            if prev is not None and abs(area - prev[2]) <= SAME_AREA * prev[2]:
+                # (all but the same pixels: the skeleton, most of the cost, would
+                # give all but the same width; a solid mask runs through every radius)
+                width = prev[1] * area / max(prev[2], 1)
+            else:
+                width = _mean_width(comp)
+            cache[i] = (comp, width, area)
         return cache[i]
 
     # a hollow tube's width jumps (rim → whole tube) once the radius reaches
@@ -259,7 +272,7 @@ def fill_tube(mask: np.ndarray, max_radius: int | None = None, *, fill_ratio: fl
     # (the rims may merge gradually first, so ask for a clear step followed by a
     # plateau rather than one fixed ratio)
     for i in range(1, len(radii)):
-        before, (filled, width) = closed(i - 1)[1], closed(i)
+        before, (filled, width, _) = closed(i - 1)[1], closed(i)
         step = before > 0 and width >= 1.25 * before
         if not (step and width > fill_ratio * radii[i]):
             continue
