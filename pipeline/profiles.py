@@ -263,10 +263,11 @@ def _best_pairs(left, right, *, step, half_width, window, width_tol, min_strengt
         right = np.where(np.isnan(right), -np.inf, right)
     m, p = left.shape
     mid = (p - 1) / 2
-    li, lh = _top_peaks(left, n_peaks)
-    ri, rh = _top_peaks(right, n_peaks)
-    lpos = (_parabolic(left, li) - mid) * step     # (M, K) offsets, px
-    rpos = (_parabolic(right, ri) - mid) * step
+    # both sides in one pass (the arrays are small: numpy's per-call cost dominates)
+    both = np.concatenate([left, right])
+    idx, heights = _top_peaks(both, n_peaks)
+    pos = (_parabolic(both, idx) - mid) * step     # (2M, K) offsets, px
+    lpos, rpos, lh, rh = pos[:m], pos[m:], heights[:m], heights[m:]
     width = rpos[:, None, :] - lpos[:, :, None]    # (M, K, K)
     centre = 0.5 * (rpos[:, None, :] + lpos[:, :, None])
     strength = np.minimum(lh[:, :, None], rh[:, None, :])
