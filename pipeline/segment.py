@@ -230,8 +230,9 @@ def fill_tube(mask: np.ndarray, max_radius: int | None = None, *, fill_ratio: fl
     """Join the rims of a hollow tube with the smallest closing that fills it.
 
     A closing of radius r counts as filling the tube when the mean width jumps
-    (by 1.25x) to over ``fill_ratio`` · r, and then levels off (the next
-    radius widens it by at most ``plateau_ratio``).
+    (by 1.25x, from one radius to the next or over two) to over ``fill_ratio`` ·
+    r, and then levels off (the next radius widens it by at most
+    ``plateau_ratio``).
 
     Returns
     -------
@@ -271,10 +272,15 @@ def fill_tube(mask: np.ndarray, max_radius: int | None = None, *, fill_ratio: fl
     # half the gap between its rims; take the first such jump
     # (the rims may merge gradually first, so ask for a clear step followed by a
     # plateau rather than one fixed ratio)
+    stepped = False
     for i in range(1, len(radii)):
         before, (filled, width, _) = closed(i - 1)[1], closed(i)
         step = before > 0 and width >= 1.25 * before
-        if not (step and width > fill_ratio * radii[i]):
+        # a jump spread over two radii (rims that merge over a stretch first,
+        # then all along) counts from before it began
+        spread = stepped and width >= 1.25 * closed(i - 2)[1]
+        stepped = step
+        if not ((step or spread) and width > fill_ratio * radii[i]):
             continue
         if i == len(radii) - 1 or closed(i + 1)[1] <= plateau_ratio * width:
             return filled, radii[i]
