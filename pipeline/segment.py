@@ -220,8 +220,9 @@ def fill_lumen(mask: np.ndarray, *, elongation: float = 4.0) -> np.ndarray:
     return mask | lut[labels]
 
 
-#: A closing that changes the mask's area by at most this fraction is taken to
-#: leave its mean width in proportion (its skeleton is not redrawn).
+#: A closing that changes the mask's area by at most this fraction from the last
+#: one whose skeleton was drawn is taken to leave its mean width in proportion
+#: (its skeleton is not redrawn).
 SAME_AREA = 0.01
 
 
@@ -258,14 +259,16 @@ def fill_tube(mask: np.ndarray, max_radius: int | None = None, *, fill_ratio: fl
                                        borderType=cv2.BORDER_REPLICATE).astype(bool)
             comp = _largest(out)
             area = int(comp.sum())
-            prev = cache.get(i - 1)
-            if prev is not None and abs(area - prev[2]) <= SAME_AREA * prev[2]:
+            # the last closing whose skeleton was drawn
+            ref = cache[i - 1][2] if i else None
+            if ref is not None and abs(area - ref[0]) <= SAME_AREA * ref[0]:
                 # (all but the same pixels: the skeleton, most of the cost, would
                 # give all but the same width; a solid mask runs through every radius)
-                width = prev[1] * area / max(prev[2], 1)
+                width = ref[1] * area / max(ref[0], 1)
             else:
                 width = _mean_width(comp)
-            cache[i] = (comp, width, area)
+                ref = (area, width)
+            cache[i] = (comp, width, ref)
         return cache[i]
 
     # a hollow tube's width jumps (rim → whole tube) once the radius reaches
