@@ -259,6 +259,10 @@ class FrameTrack:
     shear_deg : float
         A relief's shear direction, deg (y up), on the frame that made it
         known (:func:`pipeline.refine.relief_shear`); NaN on the others.
+    fit : Curve or None
+        The fit itself, where ``curve`` (the shape reported) holds the tip
+        stiffer (:data:`pipeline.refine.TIP_OUTPUT_STIFFNESS`): the next
+        frame is predicted from it.
     """
 
     frame: int
@@ -273,10 +277,16 @@ class FrameTrack:
     crossing: bool = False
     polarity: int | None = None
     shear_deg: float = float("nan")
+    fit: Curve | None = None
 
     @property
     def ok(self) -> bool:
         return self.status == "ok"
+
+    @property
+    def tracked(self) -> Curve | None:
+        """The curve the tracker goes on from: the fit, or ``curve``."""
+        return self.fit if self.fit is not None else self.curve
 
     @property
     def bend_angle_rad(self) -> float:
@@ -638,7 +648,7 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
                 # the restart was given the base found before, not the user's --base
                 result = replace(result, base_source="kept from an earlier frame")
         if search and result.ok:
-            search_from = JOINT_CHECK_GROWTH * abs(result.curve.coef[-1])
+            search_from = JOINT_CHECK_GROWTH * abs(result.tracked.coef[-1])
         if result.ok and result.curve.joints != (known or ()):
             known = result.curve.joints if result.curve.joints or given else None
         if result.ok and history and ((result.curve.joints, result.curve.coef.size)
@@ -655,21 +665,21 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
             image = as_float(frame)
             image = image.copy() if image is frame else image
         if result.ok:
-            history = (history + [result.curve])[-2:]
+            history = (history + [result.tracked])[-2:]
             lost_run = 0
             if look.polarity == 0 and look.shear is None and not result.crossing:
                 image = as_float(frame) if image is None else image
-                look = shear_votes.add(image, result.curve, look)
+                look = shear_votes.add(image, result.tracked, look)
                 if look.shear is not None:
                     result = replace(result, shear_deg=float(np.degrees(look.shear)))
             if not result.crossing:
-                ratio = section_ratio(result.curve)
-                tip_ratio = None if ratio is None else (result.curve.joints, ratio)
+                ratio = section_ratio(result.tracked)
+                tip_ratio = None if ratio is None else (result.tracked.joints, ratio)
             # the pipette holds the base still: a restart finds the tube from the
             # same base, so the ends cannot swap (which would flip the angle's sign)
             held_base = base_hint if base_hint is not None else _base_col_row(result.curve)
             if pending is not None and not result.crossing:
-                votes.add(image, result.curve, look, settings)
+                votes.add(image, result.tracked, look, settings)
         else:
             lost_run += 1
             if lost_run >= RESTART_AFTER:
@@ -790,9 +800,9 @@ def _refitted(pending, base: complex | None, turn: float, look: TubeLook | None,
         if (base is None and not turn) or not result.ok or look is None:
             out.append(result)
             continue
-        moved = _moved_base(result.curve, base, turn)
+        moved = _moved_base(result.tracked, base, turn)
         if result.base_source:
-            shift = result.curve.length - moved.length
+            shift = result.tracked.length - moved.length
             said = ([f"moved {abs(shift):.1f} px " + ("towards the tip" if shift > 0 else
                                                      "back along the pipette axis")]
                     if base is not None else [])
@@ -802,7 +812,7 @@ def _refitted(pending, base: complex | None, turn: float, look: TubeLook | None,
                 "first frames show"))
         r = refine(image, moved, look, iterations=settings.first_rounds,
                    avoid_contact=result.crossing, tol_px=settings.tol_px)
-        out.append(replace(result, curve=r.curve, residual_px=r.residual_px,
+        out.append(replace(result, curve=_reported(r), fit=r.curve, residual_px=r.residual_px,
                            valid_fraction=r.valid_fraction) if _good(r, look) else result)
     # a frame lost before a later one was measured (a first frame the tracker
     # could not start on, that the next one started on) is tracked backwards
@@ -810,13 +820,13 @@ def _refitted(pending, base: complex | None, turn: float, look: TubeLook | None,
     later = None
     for i in range(len(out) - 1, -1, -1):
         if out[i].ok:
-            later = out[i].curve
+            later = out[i].tracked
         elif later is not None and look is not None:
             r = _from_later(pending[i][1], later, look, settings)
             if r is not None:
-                out[i] = FrameTrack(out[i].frame, "ok", r.curve, "backward", r.residual_px,
-                                    r.valid_fraction, crossing=self_contact(later,
-                                                                            look.mean_half_width))
+                out[i] = FrameTrack(out[i].frame, "ok", _reported(r), "backward", r.residual_px,
+                                    r.valid_fraction, fit=r.curve,
+                                    crossing=self_contact(later, look.mean_half_width))
                 later = r.curve
     return out
 
@@ -860,9 +870,10 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
                 widths.add(widths_at(image, r.curve, look, widths.u))
             if not widths.joints:
                 widths.joints = r.curve.joints
-        return (FrameTrack(index, status, r.curve if status == "ok" else None, "init",
+        return (FrameTrack(index, status, _reported(r) if status == "ok" else None, "init",
                            r.residual_px, r.valid_fraction, base_source=source,
-                           smooth_px=look.smooth_px, polarity=look.polarity), look)
+                           smooth_px=look.smooth_px, polarity=look.polarity,
+                           fit=r.curve if status == "ok" else None), look)
     hw = look.mean_half_width
     pred = _predict(history)
     last_length = history[-1].length
@@ -984,8 +995,17 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
     if jump > np.pi:
         return FrameTrack(index, "lost: bend angle jumped by about a turn", None, stage,
                           r.residual_px, r.valid_fraction, work, crossing=crossing)
-    return FrameTrack(index, "ok", r.curve, stage, r.residual_px, r.valid_fraction, work,
-                      crossing=crossing)
+    return FrameTrack(index, "ok", _reported(r), stage, r.residual_px, r.valid_fraction, work,
+                      crossing=crossing, fit=r.curve)
+
+
+def _reported(r: Refined) -> Curve:
+    """The shape a frame reports: the fit with its tip held stiffer
+    (:data:`pipeline.refine.TIP_OUTPUT_STIFFNESS`)."""
+    c = r.curve
+    if r.tip_correction is None or r.tip_correction.size != c.coef.size:
+        return c
+    return c.with_params(c.coef + r.tip_correction, c.length)
 
 
 def _due(frames: int) -> bool:

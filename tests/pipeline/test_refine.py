@@ -102,6 +102,31 @@ def test_a_narrow_tube_s_tip_angle_does_not_follow_the_edge_noise():
     assert abs(np.degrees(clean.curve.coef[-1] - truth.coef[-1])) < 0.2
 
 
+
+def test_the_reported_tip_is_held_stiffer_than_the_fit():
+    """The fit's last few pixels follow the edge noise; the shape reported
+    (``tip_correction`` added) holds the tip's curvature firmer: over 16 noise
+    draws on a tube 9 px wide, the tip angle's RMS error 0.59 -> 0.50 deg,
+    and a noise-free arc keeps its tip angle."""
+    base, length, kappa, hw = 40 - 200j, 200.0, 1 / 80, 4.5
+    z, _ = arc_axis(base, 0.0, length, kappa)
+    truth = fit_to_polyline(z, 0.0, n_coef=16)
+    look = TubeLook(-1, np.full(5, hw), 0.05)
+    fit, reported = [], []
+    for seed in range(16):
+        img = tube_image((240, 320), base, 0.0, length, kappa, hw, contrast=0.2, noise=0.02,
+                         seed=seed)
+        r = refine(img, truth, look, iterations=6)
+        fit.append(r.curve.coef[-1] - truth.coef[-1])
+        reported.append(r.curve.coef[-1] + r.tip_correction[-1] - truth.coef[-1])
+    assert np.sqrt(np.mean(np.square(reported))) < 0.9 * np.sqrt(np.mean(np.square(fit)))
+    clean = refine(tube_image((240, 320), base, 0.0, length, kappa, hw, contrast=0.2), truth,
+                   look, iterations=6)
+    assert abs(np.degrees(clean.curve.coef[-1] + clean.tip_correction[-1]
+                          - truth.coef[-1])) < 0.2
+    # the base-tangent fit (free_base) reports its own curve
+    assert refine(img, truth, look, iterations=2, free_base=True).tip_correction is None
+
 def _two_sections(k_body, k_tip, joint=0.8, length=400.0):
     """A curve whose curvature steps from k_body to k_tip (1/px) at ``joint``."""
     s = np.linspace(0.0, length, 4001)
