@@ -280,10 +280,12 @@ def fill_tube(mask: np.ndarray, max_radius: int | None = None, *, fill_ratio: fl
         before, (filled, width, _) = closed(i - 1)[1], closed(i)
         step = before > 0 and width >= 1.25 * before
         # a jump spread over two radii (rims that merge over a stretch first,
-        # then all along) counts from before it began
+        # then all along) counts from before it began, and against the radius
+        # that began it
         spread = stepped and width >= 1.25 * closed(i - 2)[1]
         stepped = step
-        if not ((step or spread) and width > fill_ratio * radii[i]):
+        if not ((step and width > fill_ratio * radii[i])
+                or (spread and width > fill_ratio * radii[i - 1])):
             continue
         if i == len(radii) - 1 or closed(i + 1)[1] <= plateau_ratio * width:
             return filled, radii[i]

@@ -8,6 +8,7 @@ what the start learns: the tube's width, its length, where it lies.
 import numpy as np
 import pytest
 
+from models import get_sample
 from pipeline import segment, track
 from pipeline.centreline import from_image
 from pipeline.render import Renderer, default_scene, truth_tables
@@ -77,19 +78,32 @@ def test_a_transparent_tube_on_a_mottled_background_is_found_by_its_outline():
     assert np.median(near) <= 1.5
 
 
-@pytest.mark.parametrize("seed", [1, 5, 11])
-def test_rims_that_join_over_two_closings_still_fill_the_tube(seed):
+@pytest.mark.parametrize("sample, angle, look, seed", [
+    (1, 235.0, {"name": "low_contrast", "photons": 816.0}, 1),
+    (1, 235.0, {"name": "low_contrast", "photons": 816.0}, 5),
+    (1, 235.0, {"name": "low_contrast", "photons": 816.0}, 11),
+    # thick walls: the closings fill the lumen over several radii, of which
+    # only the first is under a 2.5th of the tube's width (on one such frame,
+    # mean width 7 -> 8.8 -> 17.5 -> 24.6 -> 27.5 px at radii 4, 6, 8, 11, 16)
+    (3, 9.0, {"name": "low_contrast", "photons": 900.0, "gradient": 0.44}, 4),
+    (3, 9.0, {"name": "low_contrast", "photons": 900.0, "gradient": 0.44}, 6),
+    (2, 189.0, {"name": "low_contrast", "photons": 620.0, "contrast": 0.32}, 2),
+])
+def test_rims_that_join_over_two_closings_still_fill_the_tube(sample, angle, look, seed):
     """A faint, noisy transparent tube's rims are dotted: one closing joins
     them over a stretch, the next all along (mean width 6 -> 8 -> 17 -> 20 px,
     no single step followed by a plateau). Left unfilled, the skeleton ran
-    down one rim and back up the other: a path 1.6-2x the tube's length
-    (these seeds; 9 of 12 filled before)."""
-    scene = default_scene(1, n_frames=1, seed=seed, width=480, height=360,
-                          base_angle_deg=235.0, mirror=True,
-                          look={"name": "low_contrast", "photons": 816.0})
+    down one rim and back up the other: a path about twice the tube's length
+    and a rim's width (these seeds; 9 of 12 filled before in the first case,
+    and 9 and 11 of 12 in the others)."""
+    scene = default_scene(sample, n_frames=1, seed=seed, width=480, height=360,
+                          base_angle_deg=angle, mirror=sample == 1, look=look)
     renderer = Renderer(scene)
     _, lines, _ = truth_tables(scene, renderer.layout)
     length = lines["s_um"].max() / renderer.layout.um_per_px
     det = segment.detect(renderer.frame(0))
     assert det is not None
-    assert det.length == pytest.approx(length, rel=0.06)
+    assert length <= det.length <= 1.15 * length
+    tube = get_sample(sample)
+    outer_um = min(tube.r_in_um + 0.5 * (x.t_top_um + x.t_bot_um) for x in tube.sections)
+    assert det.half_width >= 0.8 * outer_um / renderer.layout.um_per_px
