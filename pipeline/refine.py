@@ -208,6 +208,10 @@ class Refined:
         Change of ``curve.coef`` (rad) that holds the tip's curvature as
         :data:`TIP_OUTPUT_STIFFNESS` asks: added for the shape reported,
         not for the next frame's fit.
+    noise_px : float
+        The valid profiles' centres' scatter from one profile to the next
+        (robust, per profile), px: the edge noise, which a smooth misfit
+        does not raise.
     """
 
     curve: Curve
@@ -221,6 +225,7 @@ class Refined:
     usable: np.ndarray | None = None
     midpoints: np.ndarray | None = None
     tip_correction: np.ndarray | None = None
+    noise_px: float = float("inf")
 
     @property
     def valid_fraction(self) -> float:
@@ -485,12 +490,17 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
     # residual of the last measurement against the curve it was measured from
     res = edges.centre[edges.valid]
     rms = float(np.sqrt(np.mean(res**2))) if res.size else np.inf
+    # the centres' own scatter, from one profile to the next: what a smooth
+    # misfit leaves out and noise does not
+    jumps = np.diff(res)
+    noise = (float(MAD_TO_SD * np.median(np.abs(jumps - np.median(jumps))) / np.sqrt(2))
+             if jumps.size >= 4 else np.inf)
     width = np.where(edges.valid, edges.width, np.nan)
     strength = float(np.median(edges.strength[edges.valid])) if res.size else 0.0
     mids = np.where(edges.valid, smp.z[idx] + normals * np.where(edges.valid, edges.centre, 0),
                     np.nan)
     return Refined(curve, u, width, edges.valid, rms, tip_found, it, strength, ~dropped, mids,
-                   tip_correction)
+                   tip_correction, noise)
 
 
 @lru_cache(maxsize=32)

@@ -182,3 +182,29 @@ def test_the_run_says_how_the_tube_looked():
     told = FrameTrack(5, "ok", None, "fast", shear_deg=-44.6)
     assert "its shear at -45 deg (y up), told on frame 5" in _look_note([start(0), later, told])
     assert _look_note([later]) == "tube look: no start found a tube"
+
+
+def test_a_noisy_frame_s_fit_is_judged_against_its_own_edge_noise():
+    """Blurred edges under heavy noise scatter the centres by more than the
+    fixed residual limit (0.5 px): a fit that follows the tube is kept, as its
+    residual is near the centres' scatter from profile to profile; one that
+    misses the shape, smoothly, is not."""
+    from pipeline.refine import refine
+
+    base, length, kappa, hw = 40 - 200j, 220.0, 1 / 120, 4.5
+    truth = fit_to_polyline(arc_axis(base, 0.0, length, kappa)[0], 0.0, n_coef=16)
+    look = TubeLook(-1, np.full(5, hw), 0.05)
+    for seed in range(3):
+        img = tube_image((240, 320), base, 0.0, length, kappa, hw, contrast=0.6, noise=0.2,
+                         edge_px=2.0, seed=seed)
+        r = refine(img, truth, look, iterations=6)
+        assert r.residual_px > 0.5                         # over the fixed limit
+        assert r.residual_px < 2.0 * r.noise_px
+        assert track._good(r, look)
+    # a shape 25 % too bent, measured where it lies: the centres lie off it
+    # smoothly, far more than they scatter
+    bent = fit_to_polyline(arc_axis(base, 0.0, length, 1.25 * kappa)[0], 0.0, n_coef=16)
+    img = tube_image((240, 320), base, 0.0, length, kappa, hw, contrast=0.6, noise=0.03)
+    r = refine(img, bent, look, iterations=1, fit_length=False, window=2 * hw)
+    assert r.residual_px > 5 * r.noise_px
+    assert not track._good(r, look)
