@@ -109,6 +109,11 @@ MIN_COVERAGE = 0.3
 #: fluorescent scene no longer lost (its median 1.38 -> 0.70 deg), the
 #: rest identical.
 NOISE_RESIDUAL_RATIO = 2.5
+#: ... but never over this, px: centres that scatter by more are no edges
+#: (a start on the wrong structure scattered by 10-29 px, and its fits
+#: passed without this: a video that starts curled past 300 deg went from a
+#: 3.7 deg median to 610 deg).
+NOISE_RESIDUAL_MAX_PX = 1.0
 #: Frames on which the tube's width along its length is recorded, when the
 #: joints are looked for in the frames (:class:`pipeline.joints.WidthRecord`):
 #: by then the record's scatter is a sixth of one frame's.
@@ -581,7 +586,8 @@ def _good(r: Refined, look: TubeLook) -> bool:
     # long as most of the tube is still seen
     return (r.valid_fraction >= MIN_VALID and r.coverage >= MIN_COVERAGE and r.tip_found
             and r.residual_px <= max(0.5, 0.08 * look.mean_half_width,
-                                     NOISE_RESIDUAL_RATIO * r.noise_px))
+                                     min(NOISE_RESIDUAL_RATIO * r.noise_px,
+                                         NOISE_RESIDUAL_MAX_PX)))
 
 
 def _score(r: Refined) -> float:

@@ -208,3 +208,6 @@ def test_a_noisy_frame_s_fit_is_judged_against_its_own_edge_noise():
     r = refine(img, bent, look, iterations=1, fit_length=False, window=2 * hw)
     assert r.residual_px > 5 * r.noise_px
     assert not track._good(r, look)
+    # centres that scatter by pixels are no edges, however well that explains
+    # the residual (a start on the wrong structure: 12-39 px against 10-29)
+    assert not track._good(replace(r, residual_px=12.0, noise_px=10.0), look)
