@@ -279,6 +279,14 @@ class FrameReader:
             cap.release()
 
 
+def require_source(source) -> Path:
+    """``source`` as a Path, or :class:`FrameError` naming it if it does not exist."""
+    path = Path(source)
+    if not path.exists():
+        raise FrameError(f"{path}: no such file or folder")
+    return path
+
+
 def open_frames(source) -> FrameReader:
     """Open a video, a folder of images, a multi-page TIFF or a single image.
 
@@ -307,10 +315,8 @@ def open_frames(source) -> FrameReader:
     FrameError
         Missing, empty, unsupported, unreadable or inconsistent input.
     """
-    path = Path(source)
+    path = require_source(source)
     try:
-        if not path.exists():
-            raise FrameError(f"{path}: no such file or folder")
         if path.is_dir():
             return _open_folder(path)
         if path.stat().st_size == 0:

@@ -133,12 +133,17 @@ def _inward_gradient(profiles: np.ndarray, step: float, smooth_px: float):
     return grad, bad
 
 
+def _local_maxima(values: np.ndarray) -> np.ndarray:
+    """Where each row has a local maximum (on a plateau: its last point)."""
+    is_max = np.zeros(values.shape, dtype=bool)
+    is_max[:, 1:-1] = (values[:, 1:-1] >= values[:, :-2]) & (values[:, 1:-1] > values[:, 2:])
+    return is_max
+
+
 def _top_peaks(values: np.ndarray, k: int):
     """Indices and heights of the ``k`` highest local maxima of each row (−inf pads)."""
-    m, p = values.shape
-    is_max = np.zeros((m, p), dtype=bool)
-    is_max[:, 1:-1] = (values[:, 1:-1] >= values[:, :-2]) & (values[:, 1:-1] > values[:, 2:])
-    heights = np.where(is_max, values, -np.inf)
+    p = values.shape[1]
+    heights = np.where(_local_maxima(values), values, -np.inf)
     k = min(k, p)
     idx = np.argpartition(-heights, k - 1, axis=1)[:, :k]
     return idx, np.take_along_axis(heights, idx, axis=1)
@@ -346,10 +351,8 @@ def _relief_line(grad, idx, pos, *, ok_from, bad):
     rows = np.arange(m)
     opposite = -np.sign(grad[rows, idx])[:, None] * grad
     opposite[np.broadcast_to(bad, grad.shape)] = -np.inf
-    is_max = np.zeros(grad.shape, dtype=bool)
-    is_max[:, 1:-1] = ((opposite[:, 1:-1] >= opposite[:, :-2])
-                       & (opposite[:, 1:-1] > opposite[:, 2:]))
-    inner = is_max & (opposite >= ok_from[:, None]) & (np.arange(p)[None, :] < idx[:, None])
+    inner = (_local_maxima(opposite) & (opposite >= ok_from[:, None])
+             & (np.arange(p)[None, :] < idx[:, None]))
     has = inner.any(axis=1)
     j = p - 1 - np.argmax(inner[:, ::-1], axis=1)
     return np.where(has, 0.5 * (pos + _parabolic(opposite, j)), pos)

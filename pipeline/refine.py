@@ -359,6 +359,7 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
         in_last = u > curve.joints[-1]
     tip_found = False
     edges = None
+    tip_correction = None
     it = 0
     for it in range(1, iterations + 1):  # noqa: B007 (it is reported)
         smp = evaluate(curve, basis)
@@ -458,8 +459,9 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
         if not tip_found:
             damp[k] = 1e12
         step_x = np.linalg.solve(lhs + np.diag(damp), rhs)
-        tip_correction = None
-        if output_stiffness > tip_stiffness and not free_base:
+        move = np.abs(dz @ step_x).max()
+        last = move < tol_px or it == iterations
+        if last and output_stiffness > tip_stiffness and not free_base:
             # the same step with the tip held stiffer, for the shape reported
             # (one more solve of the same small system; the fit itself, which
             # must follow a tip that moves fast, keeps tip_stiffness)
@@ -477,7 +479,6 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
             var = (miss @ miss) / max(n_data - k, 1)
             if miss_out @ miss_out - miss @ miss <= TIP_OUTPUT_CHI2 * var:
                 tip_correction = step_out[:k] - step_x[:k]
-        move = np.abs(dz @ step_x).max()
         curve = curve.with_params(curve.coef + step_x[:k], max(curve.length + step_x[k], 2.0))
         if free_base:
             # B_0 = 1 − Σ_{k≥1} B_k (partition of unity): a change d of the first
@@ -485,7 +486,7 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
             d = step_x[k + 1]
             curve = replace(curve, base_angle=curve.base_angle + d, coef=curve.coef - d,
                             base=curve.base + base_normal * step_x[k + 2])
-        if move < tol_px:
+        if last:
             break
     # residual of the last measurement against the curve it was measured from
     res = edges.centre[edges.valid]

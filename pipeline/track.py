@@ -590,6 +590,15 @@ def _good(r: Refined, look: TubeLook) -> bool:
                                          NOISE_RESIDUAL_MAX_PX)))
 
 
+def _accepted(r: Refined | None, look: TubeLook, length: float) -> bool:
+    """:func:`_good`, and the length within :data:`MAX_LENGTH_STEP` of
+    ``length`` (a neighbouring frame's): a tube does not grow or shrink by a
+    tenth between frames, and an end found that far off is noise or dust
+    beyond the tip, followed over the rounds."""
+    return (r is not None and _good(r, look)
+            and abs(r.curve.length - length) <= MAX_LENGTH_STEP * length)
+
+
 def _score(r: Refined) -> float:
     return r.valid_fraction * (1.0 if r.tip_found else 0.5) / (1.0 + r.residual_px)
 
@@ -838,33 +847,27 @@ def _refitted(pending, base: complex | None, turn: float, look: TubeLook | None,
         if out[i].ok:
             later = out[i].tracked
         elif later is not None and look is not None:
-            r = _from_later(pending[i][1], later, look, settings)
+            crossing = self_contact(later, look.mean_half_width)
+            r = _from_later(pending[i][1], later, look, settings, crossing)
             if r is not None:
                 out[i] = FrameTrack(out[i].frame, "ok", _reported(r), "backward", r.residual_px,
-                                    r.valid_fraction, fit=r.curve,
-                                    crossing=self_contact(later, look.mean_half_width))
+                                    r.valid_fraction, fit=r.curve, crossing=crossing)
                 later = r.curve
     return out
 
 
-def _from_later(image: np.ndarray, later: Curve, look: TubeLook,
-                settings: TrackSettings) -> Refined | None:
-    """The tube in ``image`` found from the shape of a later frame, as the wide
-    and redetect searches would from an earlier one; None if the fits fail the
-    checks (or change the length by over :data:`MAX_LENGTH_STEP`)."""
-    hw = look.mean_half_width
-
-    def accept(r: Refined | None) -> bool:
-        return (r is not None and _good(r, look)
-                and abs(r.curve.length - later.length) <= MAX_LENGTH_STEP * later.length)
-
-    r = refine(image, later, look, window=1.5 * hw, iterations=10,
-               avoid_contact=self_contact(later, hw), tol_px=settings.tol_px)
-    if accept(r):
+def _from_later(image: np.ndarray, later: Curve, look: TubeLook, settings: TrackSettings,
+                crossing: bool) -> Refined | None:
+    """The tube in ``image`` found from the shape of a later frame (which
+    touches itself if ``crossing``), as the wide and redetect searches would
+    from an earlier one; None if the fits fail the checks (:func:`_accepted`)."""
+    r = refine(image, later, look, window=1.5 * look.mean_half_width, iterations=10,
+               avoid_contact=crossing, tol_px=settings.tol_px)
+    if _accepted(r, look, later.length):
         return r
     # moved too far for that: found afresh from the later frame's base
     r = _redetect(image, later, look, settings)
-    return r if accept(r) else None
+    return r if _accepted(r, look, later.length) else None
 
 
 def _track_one(index, frame, look, history, base_hint, base_end, detection, settings,
@@ -895,10 +898,7 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
     last_length = history[-1].length
 
     def accept(r: Refined) -> bool:
-        # a tube does not grow or shrink by a tenth between frames: an end found
-        # that far off is noise or dust beyond the tip, followed over the rounds
-        step = abs(r.curve.length - last_length)
-        return _good(r, look) and step <= MAX_LENGTH_STEP * last_length
+        return _accepted(r, look, last_length)
 
     def rank(r: Refined) -> float:
         # of several fits, the best scored that passes the checks

@@ -175,11 +175,9 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
     """
     from models import get_sample
 
-    from .frames import open_frames
+    from .frames import open_frames, require_source
 
-    if not Path(source).exists():
-        # (first: a mistyped path is what to fix before any option)
-        raise ValueError(f"{source}: no such file or folder")
+    require_source(source)  # (first: a mistyped path is what to fix before any option)
     if um_per_px is not None and sample is not None:
         raise ValueError("give either --um-per-px or --sample for the scale, not both")
     if um_per_px is None and sample is None:
