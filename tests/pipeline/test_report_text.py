@@ -1,10 +1,12 @@
 """The reports' README states what the per-frame figures show."""
 
+import os
+
 import numpy as np
 import pandas as pd
 
 from pipeline.report import _growth_line
-from pipeline.tracking_report import drawn_section
+from pipeline.tracking_report import _one_core, drawn_section
 
 
 def test_the_error_growth_is_measured_from_the_per_frame_table(tmp_path):
@@ -40,3 +42,15 @@ def test_the_drawn_scenes_section_counts_and_lists_the_misses():
     assert text.index("| c |") < text.index("| b |")
     assert "| a |" not in text
     assert "| c | 5 | fluorescent | — | 2.0 | 800x600 | mp4/8 | 0 | 9.00 |" in text
+
+
+def test_the_speed_benchmark_runs_on_one_cpu_and_gives_the_others_back():
+    if not hasattr(os, "sched_setaffinity"):  # (macOS, Windows): said, not pretended
+        with _one_core() as pinned:
+            assert pinned is False
+        return
+    before = os.sched_getaffinity(0)
+    with _one_core() as pinned:
+        inside = os.sched_getaffinity(0)
+    assert pinned and len(inside) == 1 and inside <= before
+    assert os.sched_getaffinity(0) == before
