@@ -15,14 +15,13 @@ or an opaque tube). Offsets are in pixels along the left normal.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
-from scipy.ndimage import gaussian_filter1d
+from scipy.ndimage import correlate1d, gaussian_filter1d
 from scipy.stats import median_abs_deviation
-
-from .centreline import to_image
 
 
 def sample_lines(image: np.ndarray, starts, directions, offsets) -> np.ndarray:
@@ -41,11 +40,17 @@ def sample_lines(image: np.ndarray, starts, directions, offsets) -> np.ndarray:
     (M, P) float32 ndarray
         Samples; NaN outside the image.
     """
-    pts = starts[:, None] + offsets[None, :] * directions[:, None]
-    col, row = to_image(pts)
-    return cv2.remap(image, col.astype(np.float32), row.astype(np.float32),
-                     interpolation=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
-                     borderValue=float("nan"))
+    starts = np.asarray(starts)
+    directions = np.broadcast_to(directions, starts.shape)
+    offsets = np.asarray(offsets, dtype=np.float64)
+    # (col, row) = (x, −y), each formed straight into the float32 maps remap takes
+    col = np.empty((starts.size, offsets.size), np.float32)
+    row = np.empty_like(col)
+    np.add(starts.real[:, None], offsets * directions.real[:, None], out=col, casting="unsafe")
+    np.subtract(-starts.imag[:, None], offsets * directions.imag[:, None], out=row,
+                casting="unsafe")
+    return cv2.remap(image, col, row, interpolation=cv2.INTER_LINEAR,
+                     borderMode=cv2.BORDER_CONSTANT, borderValue=float("nan"))
 
 
 def sample_strips(image: np.ndarray, starts, directions, offsets, shifts) -> np.ndarray:
@@ -129,8 +134,22 @@ def _inward_gradient(profiles: np.ndarray, step: float, smooth_px: float):
         fill = np.nanmean(profiles) if not bad.all() else 0.0
         profiles = np.where(bad, fill, profiles)
     sigma = max(smooth_px / step, 0.5)
-    grad = gaussian_filter1d(profiles, sigma, axis=1, order=1, mode="nearest") / step
+    grad = correlate1d(profiles, _gaussian_slope_weights(sigma), axis=1, mode="nearest") / step
     return grad, bad
+
+
+@functools.lru_cache(maxsize=64)
+def _gaussian_slope_weights(sigma: float) -> np.ndarray:
+    """The weights with which ``gaussian_filter1d(order=1)`` correlates: its
+    response to a unit impulse, reversed. A tracking run filters profiles
+    thousands of times with a few widths, and building the kernel each time
+    cost as much as the filtering itself."""
+    radius = int(4.0 * sigma + 0.5)  # gaussian_filter1d's default truncate=4
+    impulse = np.zeros(2 * radius + 1)
+    impulse[radius] = 1.0
+    weights = gaussian_filter1d(impulse, sigma, order=1, mode="constant")[::-1].copy()
+    weights.flags.writeable = False
+    return weights
 
 
 def _local_maxima(values: np.ndarray) -> np.ndarray:
