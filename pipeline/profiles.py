@@ -142,8 +142,8 @@ def _inward_gradient(profiles: np.ndarray, step: float, smooth_px: float):
 def _gaussian_slope_weights(sigma: float) -> np.ndarray:
     """The weights with which ``gaussian_filter1d(order=1)`` correlates: its
     response to a unit impulse, reversed. A tracking run filters profiles
-    thousands of times with a few widths, and building the kernel each time
-    cost as much as the filtering itself."""
+    several times a frame with the same few widths, and building the kernel
+    each time cost as much as the filtering itself."""
     radius = int(4.0 * sigma + 0.5)  # gaussian_filter1d's default truncate=4
     impulse = np.zeros(2 * radius + 1)
     impulse[radius] = 1.0
