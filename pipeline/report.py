@@ -308,7 +308,7 @@ def _readme(out: Path, track, speed, calib, vs_n, demo, model_md: str,
             cal_speed: pd.DataFrame, sweep: pd.DataFrame, drawn: pd.DataFrame) -> str:
     s = speed.iloc[0]
     c = cal_speed.iloc[0]
-    cores = ("One core (the process pinned to one CPU)" if s.get("one_core", False)
+    cores = ("One core (every thread of the process pinned to one CPU)" if s.get("one_core", False)
              else "Not pinned to one CPU (this system cannot pin a process)")
     lines = [
         "# microtube reports", "",

@@ -65,17 +65,29 @@ def tracking_speed(work: Path, n_frames: int = 100) -> pd.DataFrame:
 
 @contextlib.contextmanager
 def _one_core():
-    """Run the block on one CPU (the target is per core: OpenCV's decoder and
-    numpy may thread); yields whether the process could be pinned."""
-    if not hasattr(os, "sched_setaffinity"):
+    """Run the block with every thread of the process on one CPU (the target is
+    per core, and OpenCV and numpy keep pools of worker threads, some started
+    by the report's earlier work); yields whether the process could be pinned.
+    Every thread is given the CPUs it had back afterwards."""
+    if not hasattr(os, "sched_setaffinity") or not os.path.isdir(_THREADS):
         yield False
         return
     before = os.sched_getaffinity(0)
-    os.sched_setaffinity(0, {min(before)})
+    _pin_threads({min(before)})
     try:
         yield True
     finally:
-        os.sched_setaffinity(0, before)
+        _pin_threads(before)
+
+
+#: Where Linux lists a process's threads.
+_THREADS = "/proc/self/task"
+
+
+def _pin_threads(cpus: set[int]) -> None:
+    for tid in os.listdir(_THREADS):
+        with contextlib.suppress(OSError):  # (a thread that ended meanwhile)
+            os.sched_setaffinity(int(tid), cpus)
 
 
 def _sweep_settings() -> dict:
