@@ -11,8 +11,10 @@ are their parts of ``reports/README.md``.
 
 from __future__ import annotations
 
-import contextlib
+import json
 import os
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -33,61 +35,66 @@ def _fmt(v, spec=".2f"):
 
 def tracking_speed(work: Path, n_frames: int = 100) -> pd.DataFrame:
     """The track command on 1024x768 8-bit MJPG video against merely decoding it
-    (each the best of 3 runs)."""
-    from .frames import open_frames
+    (each the best of 3 runs), on one CPU.
+
+    Timed in a fresh Python started on one CPU (where the system can pin a
+    process), as ``taskset -c 0 microtube track`` would run, its imports left
+    out: OpenCV, OpenBLAS and pyarrow size their thread pools by the CPUs they
+    see when loaded, and pools sized for more CPUs than a process is then held
+    to spin against the work (pinning this process's threads afterwards made
+    the run 4x slower).
+    """
     from .render import default_scene, render_scene
-    from .tracks import track_video
 
     scene = default_scene(1, n_frames=n_frames, seed=31, width=1024, height=768)
     scene_dir = render_scene(scene, work / "speed_scene", fmt="avi")
-    video = scene_dir / "frames.avi"
-    # best of 3 (as timeit): the other runs' extra time is the machine's, not ours
-    decode = total = np.inf
-    with _one_core() as pinned:
-        for _ in range(3):
-            start = time.perf_counter()
-            with open_frames(video) as reader:
-                for _ in reader:
-                    pass
-            decode = min(decode, time.perf_counter() - start)
-            start = time.perf_counter()
-            run = track_video(video, work / "speed_track", um_per_px=12.0)
-            total = min(total, time.perf_counter() - start)
+    t = _on_one_cpu("from pipeline.tracking_report import _time_track; "
+                    "print(json.dumps(_time_track(sys.argv[1], sys.argv[2])))",
+                    scene_dir / "frames.avi", work / "speed_track")
+    decode, total = t["decode_s"], t["track_s"]
     return pd.DataFrame([{
         "video": "1024x768 8-bit MJPG AVI, sample #1 inflating", "frames": n_frames,
-        "one_core": pinned,
+        "one_core": t["cpus"] == 1,
         "decode_s": decode, "decode_frames_per_s": n_frames / decode,
         "track_command_s": total, "track_frames_per_s": n_frames / total,
-        "ratio_to_decode": total / decode, "frames_ok": run.n_ok,
+        "ratio_to_decode": total / decode, "frames_ok": t["frames_ok"],
         "target_frames_per_s": 100, "meets_target": n_frames / total >= 100,
     }])
 
 
-@contextlib.contextmanager
-def _one_core():
-    """Run the block with every thread of the process on one CPU (the target is
-    per core, and OpenCV and numpy keep pools of worker threads, some started
-    by the report's earlier work); yields whether the process could be pinned.
-    Every thread is given the CPUs it had back afterwards."""
-    if not hasattr(os, "sched_setaffinity") or not os.path.isdir(_THREADS):
-        yield False
-        return
-    before = os.sched_getaffinity(0)
-    _pin_threads({min(before)})
-    try:
-        yield True
-    finally:
-        _pin_threads(before)
+def _on_one_cpu(code: str, *args):
+    """Run ``code`` (which has ``json`` and ``sys`` imported, and prints one
+    JSON document) in a fresh Python held to one CPU from its start where the
+    system can pin a process (else on all); its document."""
+    cpu = min(os.sched_getaffinity(0)) if hasattr(os, "sched_setaffinity") else None
+    done = subprocess.run(
+        [sys.executable, "-c", "import json, sys; " + code, *map(str, args)],
+        capture_output=True, text=True, check=False,
+        preexec_fn=None if cpu is None else (lambda: os.sched_setaffinity(0, {cpu})))
+    if done.returncode:
+        last = (done.stderr.strip().splitlines() or ["no message"])[-1]
+        raise RuntimeError(f"the speed benchmark failed: {last}")
+    return json.loads(done.stdout.strip().splitlines()[-1])
 
 
-#: Where Linux lists a process's threads.
-_THREADS = "/proc/self/task"
+def _time_track(video, out) -> dict:
+    """Best of 3 decodings of ``video`` and of 3 track runs into ``out``, s (as
+    timeit: the other runs' extra time is the machine's, not ours)."""
+    from .frames import open_frames
+    from .tracks import track_video
 
-
-def _pin_threads(cpus: set[int]) -> None:
-    for tid in os.listdir(_THREADS):
-        with contextlib.suppress(OSError):  # (a thread that ended meanwhile)
-            os.sched_setaffinity(int(tid), cpus)
+    decode = total = np.inf
+    for _ in range(3):
+        start = time.perf_counter()
+        with open_frames(video) as reader:
+            for _ in reader:
+                pass
+        decode = min(decode, time.perf_counter() - start)
+        start = time.perf_counter()
+        run = track_video(video, out, um_per_px=12.0)
+        total = min(total, time.perf_counter() - start)
+    return {"decode_s": decode, "track_s": total, "frames_ok": run.n_ok,
+            "cpus": len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else None}
 
 
 def _sweep_settings() -> dict:
