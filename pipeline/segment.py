@@ -193,8 +193,26 @@ def _largest(mask: np.ndarray) -> np.ndarray:
     return labels == np.argmax(areas)
 
 
+def _skeleton(mask: np.ndarray) -> np.ndarray:
+    """``skeletonize(mask)``, worked out over the mask's bounding box only.
+
+    The thinning decides each pixel from its 3x3 neighbourhood and never sets a
+    background pixel, so a box with a pixel of background around the mask (or
+    the image border where the mask reaches it) gives the same skeleton; a tube
+    across a frame fills a small part of it.
+    """
+    rows, cols = np.nonzero(np.any(mask, axis=1))[0], np.nonzero(np.any(mask, axis=0))[0]
+    out = np.zeros(mask.shape, dtype=bool)
+    if rows.size == 0:
+        return out
+    r0, r1 = max(rows[0] - 1, 0), min(rows[-1] + 2, mask.shape[0])
+    c0, c1 = max(cols[0] - 1, 0), min(cols[-1] + 2, mask.shape[1])
+    out[r0:r1, c0:c1] = skeletonize(mask[r0:r1, c0:c1])
+    return out
+
+
 def _mean_width(mask: np.ndarray) -> float:
-    skel = skeletonize(mask)
+    skel = _skeleton(mask)
     if skel.sum() < 3:
         return 0.0
     return float(mask.sum() / skel.sum())
@@ -447,7 +465,7 @@ def _detect_in(mask: np.ndarray, f: int, base_hint, base_end, *,
     if outline and closing == 0:
         return None
     dist = ndi.distance_transform_edt(filled)
-    skel = skeletonize(filled)
+    skel = _skeleton(filled)
     radius = float(np.median(dist[skel])) if skel.any() else 0.0
     path_rc = longest_path(skel, border_bonus=2.0 * radius, margin=2.0 + radius)
     if path_rc.shape[0] < 5:

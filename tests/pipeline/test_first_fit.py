@@ -107,3 +107,19 @@ def test_rims_that_join_over_two_closings_still_fill_the_tube(sample, angle, loo
     tube = get_sample(sample)
     outer_um = min(tube.r_in_um + 0.5 * (x.t_top_um + x.t_bot_um) for x in tube.sections)
     assert det.half_width >= 0.8 * outer_um / renderer.layout.um_per_px
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_skeleton_over_the_bounding_box_is_the_whole_frames_skeleton(seed):
+    from skimage.morphology import skeletonize
+
+    rng = np.random.default_rng(seed)
+    rows, cols = rng.integers(8, 90, 2)
+    mask = np.zeros((rows, cols), bool)
+    for _ in range(4):  # blobs, some cut by the border
+        r, c = rng.integers(0, rows), rng.integers(0, cols)
+        hr, hc = rng.integers(1, 25, 2)
+        mask[max(r - hr, 0):r + hr, max(c - hc, 0):c + hc] = True
+    mask ^= rng.random(mask.shape) < 0.05  # ragged edges, specks, holes
+    np.testing.assert_array_equal(segment._skeleton(mask), skeletonize(mask))
+    assert not segment._skeleton(np.zeros((5, 7), bool)).any()
