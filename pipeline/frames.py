@@ -261,22 +261,11 @@ class FrameReader:
                 yield self._check(_tiff_page(page, where), where)
 
     def _iter_video(self) -> Iterator[np.ndarray]:
-        cap = cv2.VideoCapture(str(self.source))
-        try:
-            if not cap.isOpened():
-                raise FrameError(f"{self.source}: the video can no longer be opened")
-            i = 0
-            while True:
-                ok, img = cap.read()
-                if not ok or img is None:
-                    break  # end of stream; a truncated file simply ends early
-                yield self._check(_to_grey(img, f"{self.source} (frame {i})"),
-                                  f"{self.source} (frame {i})")
-                i += 1
-            if i == 0:
-                raise FrameError(f"{self.source}: no frames could be decoded")
-        finally:
-            cap.release()
+        i = -1
+        for i, grey in enumerate(_video_frames(self.source)):
+            yield self._check(grey, f"{self.source} (frame {i})")
+        if i < 0:
+            raise FrameError(f"{self.source}: no frames could be decoded")
 
 
 def require_source(source) -> Path:
@@ -389,27 +378,70 @@ _AXIS_NAMES = {"T": "times", "C": "channels", "Z": "z-slices", "Q": "images", "I
 
 
 def _open_video(path: Path) -> FrameReader:
+    meta = {}
+    frames = _video_frames(path, meta)
+    try:
+        first = next(frames, None)
+    finally:
+        frames.close()
+    if first is None:
+        raise FrameError(f"{path}: no frames (the video opens but its first frame cannot "
+                         "be decoded)")
+    return FrameReader(path, "video", meta["count"], meta["fps"], first)
+
+
+_MJPG = cv2.VideoWriter_fourcc(*"MJPG")
+# EXIF orientation is ignored, as FFmpeg ignores it: frames keep the sensor's grid
+_JPEG_GREY = cv2.IMREAD_GRAYSCALE | cv2.IMREAD_IGNORE_ORIENTATION
+
+
+def _video_frames(path: Path, meta: dict | None = None) -> Iterator[np.ndarray]:
+    """Grey frames of a video, decoded one at a time; on opening, ``meta`` (if
+    given) gets the container's ``count`` (>= 1, best effort) and ``fps``.
+
+    Motion-JPEG frames are decoded straight to grey from their compressed
+    bytes: a JPEG holds luminance as a channel of its own, with the weights of
+    ``COLOR_BGR2GRAY``, so the chroma need not be decoded nor converted (about
+    twice as fast as decoding colour). From the first frame the JPEG decoder
+    refuses, or that comes out another size than the stream's (interlaced
+    fields, say), the rest go through OpenCV's own decoding.
+    """
     cap = None
     try:
         cap = cv2.VideoCapture(str(path))
         if not cap.isOpened():
             raise FrameError(f"{path}: not a readable video (corrupt, or a codec this OpenCV "
                              "lacks)")
-        ok, img = cap.read()
-        if not ok or img is None:
-            raise FrameError(f"{path}: no frames (the video opens but its first frame cannot "
-                             "be decoded)")
-        count = cap.get(cv2.CAP_PROP_FRAME_COUNT)
-        fps = _valid_fps(cap.get(cv2.CAP_PROP_FPS))
+        if meta is not None:
+            count = cap.get(cv2.CAP_PROP_FRAME_COUNT)
+            # containers may report -1, 0 or NaN frames (streams without an index)
+            meta["count"] = int(count) if np.isfinite(count) and count > 0 else 1
+            meta["fps"] = _valid_fps(cap.get(cv2.CAP_PROP_FPS))
+        shape = (int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT)), int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)))
+        raw = int(cap.get(cv2.CAP_PROP_FOURCC)) == _MJPG and cap.set(cv2.CAP_PROP_FORMAT, -1)
+        i = 0
+        while True:
+            ok, img = cap.read()
+            if not ok or img is None:
+                break  # end of stream; a truncated file simply ends early
+            if raw:
+                grey = cv2.imdecode(img, _JPEG_GREY) if img.size else None
+                if grey is None or grey.shape != shape:
+                    raw = False  # this frame again, and the rest, decoded by OpenCV
+                    cap.release()
+                    cap = cv2.VideoCapture(str(path))
+                    for _ in range(i):
+                        cap.grab()
+                    continue
+            else:
+                grey = _to_grey(img, f"{path} (frame {i})")
+            yield grey
+            i += 1
     except cv2.error as exc:
         raise FrameError(f"{path}: not a readable video ({_one_line(exc)})") from None
     finally:
         if cap is not None:
             cap.release()
-    # containers may report -1, 0 or NaN frames (e.g. streams without an index)
-    count = int(count) if np.isfinite(count) and count > 0 else 0
-    first = _to_grey(img, f"{path} (frame 0)")
-    return FrameReader(path, "video", max(count, 1), fps, first)
 
 
 def to_float(frame: np.ndarray) -> np.ndarray:

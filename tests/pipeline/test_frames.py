@@ -98,6 +98,76 @@ def test_avi_round_trip_is_close(tmp_path):
         assert np.abs(b.astype(float) - np.round(a * 255)).mean() < 2.0
 
 
+def colour_mjpg(path, n=6, rows=64, cols=96):
+    """A colour Motion-JPEG AVI whose channels differ. Returns the luminance
+    (BGR2GRAY) of the frames written, and of the frames as OpenCV decodes them."""
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 10.0, (cols, rows))
+    written = []
+    for k in range(n):
+        img = np.stack([smooth(rows, cols, phase=0.4 * k + c) for c in range(3)], axis=2)
+        img = (img * 255).astype(np.uint8)
+        writer.write(img)
+        written.append(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY).astype(int))
+    writer.release()
+    cap = cv2.VideoCapture(str(path))
+    decoded = []
+    while (got := cap.read())[0]:
+        decoded.append(cv2.cvtColor(got[1], cv2.COLOR_BGR2GRAY))
+    cap.release()
+    assert len(decoded) == n
+    return written, decoded
+
+
+def test_motion_jpeg_is_decoded_to_luminance_straight_from_its_bytes(tmp_path, monkeypatch):
+    written, decoded = colour_mjpg(tmp_path / "c.avi")
+    calls = []
+    real = cv2.imdecode
+    monkeypatch.setattr(F.cv2, "imdecode", lambda *a: calls.append(1) or real(*a))
+    reader, got = read_all(tmp_path / "c.avi")
+    assert len(calls) == 1 + len(written)  # the first on opening, then every frame
+    assert reader.frame_shape == (64, 96) and reader.dtype == np.uint8
+    np.testing.assert_array_equal(reader_first(tmp_path / "c.avi"), got[0])
+    for truth, a, b in zip(written, decoded, got, strict=True):
+        # the JPEG's own luminance channel: no chroma upsampling nor colour
+        # round trip, so at least as close to what was written
+        assert np.abs(truth - b).mean() <= np.abs(truth - a).mean() + 0.05
+        assert np.abs(a.astype(int) - b).max() <= 4
+
+
+def reader_first(path):
+    """The first frame ``open_frames`` decodes when it opens ``path``."""
+    reader = open_frames(path)
+    first = next(iter(reader))
+    reader.close()
+    return first
+
+
+@pytest.mark.parametrize("refusal", ["none", "wrong size"])
+@pytest.mark.parametrize("refused_from", [0, 3])
+def test_a_jpeg_frame_refused_hands_the_rest_to_opencv(tmp_path, monkeypatch, refusal,
+                                                         refused_from):
+    written, want = colour_mjpg(tmp_path / "c.avi")
+    real, calls = cv2.imdecode, []
+
+    def imdecode(buf, flags):
+        calls.append(1)
+        if len(calls) - 1 < refused_from:
+            return real(buf, flags)
+        return None if refusal == "none" else np.zeros((32, 96), np.uint8)
+
+    monkeypatch.setattr(F.cv2, "imdecode", imdecode)
+    with open_frames(tmp_path / "c.avi") as reader:
+        calls.clear()
+        got = list(reader)
+    assert len(calls) == refused_from + 1  # no JPEG decoding after the refusal
+    assert len(got) == len(want)
+    for k, (a, b) in enumerate(zip(want, got, strict=True)):
+        if k < refused_from:
+            assert np.abs(written[k] - b).mean() < 1.5
+        else:
+            np.testing.assert_array_equal(a, b)  # OpenCV's decoding, exactly
+
+
 def test_mp4_writes_or_says_why(tmp_path):
     truth = [smooth(64, 96, phase=k) for k in range(4)]
     try:
