@@ -309,9 +309,28 @@ def fill_tube(mask: np.ndarray, max_radius: int | None = None, *, fill_ratio: fl
         if not ((step and width > fill_ratio * radii[i])
                 or (spread and width > fill_ratio * radii[i - 1])):
             continue
-        if i == len(radii) - 1 or closed(i + 1)[1] <= plateau_ratio * width:
+        if ((i == len(radii) - 1 or closed(i + 1)[1] <= plateau_ratio * width)
+                and not _filled_a_curl(closed(i - 2 if spread else i - 1)[0], filled)):
             return filled, radii[i]
     return closed(0)[0], radii[0]
+
+
+def _filled_a_curl(before: np.ndarray, after: np.ndarray, elongation: float = 4.0) -> bool:
+    """Whether most of what a closing added to ``before`` is one round piece:
+    the background a curled tube encloses, its tip closed onto its body. A
+    lumen is long and thin (as in :func:`fill_lumen`), or, where the rims
+    already meet here and there, many pieces (a faint tube: 18, the largest a
+    fifth of the whole)."""
+    added = after & ~before
+    labels, n = ndi.label(added)
+    if n == 0:
+        return False
+    area = np.bincount(labels.ravel())[1:]
+    if area.max() < 0.5 * area.sum():
+        return False
+    biggest = labels == 1 + int(np.argmax(area))
+    radius = float(ndi.distance_transform_edt(biggest).max())
+    return bool(area.max() <= elongation * np.pi * radius**2)
 
 
 def _skeleton_graph(skel: np.ndarray):

@@ -299,3 +299,22 @@ def test_the_pipette_s_axis_is_the_base_tangent(polarity):
     # no pipette in view: no axis
     bare = tube_image(SHAPE, base, angle, 300.0, kappa, hw, polarity=polarity, noise=0.01)
     assert pipette_axis(bare, fit_to_polyline(z, angle, n_coef=12), look) is None
+
+
+def test_locate_base_carries_a_curled_tube_back_without_moving_the_rest_of_it():
+    """A curve starting 9 px into a tube curled 300 deg: the base is carried
+    back along its axis to the pipette, and the curve past it stays where it
+    is. (Shifting the whole curve back took the tip 9 px off the tube, and
+    the next fit, starting that far off, slid off the curl.)"""
+    kappa = np.radians(300.0) / 450.0
+    img = tube_image(SHAPE, BASE, 0.0, 450.0, kappa, 12.0, pipette_half_width=6.0)
+    z, _ = arc_axis(BASE, 0.0, 450.0, kappa)
+    s = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(z)))])
+    ahead = z[s >= 9.0]
+    moved = fit_to_polyline(ahead, float(np.angle(ahead[1] - ahead[0])), n_coef=16)
+    look = TubeLook(-1, np.full(9, 12.0), 0.05)
+    found = locate_base(img, moved, look)
+    # carried back along the curve's tangent at its start, 6 deg off the axis
+    assert abs(found.base - BASE) < 1.5
+    assert abs(found.length - 450.0) < 1.5
+    assert abs(tip_point(found) - z[-1]) < 1.0
