@@ -211,3 +211,25 @@ def test_a_base_given_where_no_pipette_shows_is_where_the_tube_starts(polarity):
     det = detect(img, base_hint=(base.real, -base.imag))
     assert abs(det.base - base) < 1.0
     assert det.base_source == "given (--base)"
+
+
+def test_each_end_is_judged_along_its_stretch_however_the_path_is_sampled():
+    """The change near an end is the median along the path's last stretch,
+    whatever its points: a skeleton's path ends with a straight step carried
+    past the skeleton, and within a half-width of the end it may hold only
+    that one point (a rendered scene's base end judged by it alone: 2.4x less
+    change than the tip, undecided; along the stretch, decided)."""
+    rng = np.random.default_rng(0)
+    rows, cols = 200, 120
+    frames = []
+    for k in range(8):
+        img = 0.2 + 0.01 * rng.standard_normal((rows, cols))
+        img[:, 60:] += 0.1 * k * np.linspace(0.0, 1.0, rows)[:, None] ** 6  # more lower down
+        frames.append(img.astype(np.float32))
+    dense = np.c_[np.arange(20.0, 181.0), np.full(161, 70.0)]
+    sparse = dense[[0, 100, 146, 160]]  # the same straight path, points 14-100 px apart
+    a = end_motion(iter(frames), dense, 16.0)
+    b = end_motion(iter(frames), sparse, 16.0)
+    assert b.first == pytest.approx(a.first, rel=0.02)
+    assert b.last == pytest.approx(a.last, rel=0.02)
+    assert a.last > 2.0 * a.first
