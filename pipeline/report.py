@@ -333,17 +333,21 @@ def _readme(out: Path, track, speed, calib, vs_n, demo, model_md: str,
     lines += [
         "", f"Per-frame errors: [`{TRACK_FRAMES_FILE}`]({TRACK_FRAMES_FILE}); the scenes "
         "named stress_* are rendered on the fly in looks and cases the committed scenes do not "
-        "cover (stress_deflating*: the video starts bent and unbends; a first frame curled "
-        "past 300° is not yet started on reliably).", "",
+        "cover (stress_deflating*: the video starts bent and unbends, stress_deflating_curl "
+        "from a 306° curl; frames the tracker cannot start on are found backwards from the "
+        "first it starts on).", "",
         "![tracking error against bend](tracking_errors.png)", "",
         _growth_line(out / TRACK_FRAMES_FILE, track), "",
         *drawn_section(drawn), "",
         "### Speed", "",
         f"The whole `track` command on {int(s.frames)} frames of 1024×768 8-bit MJPG video: "
         f"**{s.track_frames_per_s:.0f} frames/s** ({s.track_command_s:.2f} s), against "
-        f"{s.decode_frames_per_s:.0f} frames/s for merely decoding the video: "
+        f"{s.decode_frames_per_s:.0f} frames/s for merely decoding the video to grey "
+        "as the tracker's reader does (from each frame's JPEG bytes, its luminance alone): "
         f"**{s.ratio_to_decode:.1f}×** decoding time (target ≥ 100 frames/s, ≤ 3×). "
-        f"{cores}; "
+        "OpenCV's own decoding, in colour and then converted to grey, runs at "
+        f"{s.frames / s.opencv_colour_decode_s:.0f} frames/s: "
+        f"{s.ratio_to_opencv_colour_decode:.1f}× that. {cores}; "
         "each the best of 3 runs (figures vary by ±30 % on a busy machine). "
         f"[`{SPEED_FILE}`]({SPEED_FILE})", "",
         *settings_section(sweep, speed), "",
