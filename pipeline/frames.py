@@ -395,6 +395,22 @@ _MJPG = cv2.VideoWriter_fourcc(*"MJPG")
 _JPEG_GREY = cv2.IMREAD_GRAYSCALE | cv2.IMREAD_IGNORE_ORIENTATION
 
 
+def _quiet_imdecode(data: np.ndarray, null: int) -> np.ndarray | None:
+    """``cv2.imdecode(data, _JPEG_GREY)`` with the process's stderr pointed at
+    ``null`` (an open file descriptor of os.devnull) meanwhile: libjpeg prints
+    its warnings on a damaged frame ("Corrupt JPEG data: ...") straight to it,
+    where they would break the command line's one-line messages (as FFmpeg's
+    would, see OPENCV_FFMPEG_LOGLEVEL above); the frame is decoded all the
+    same, and a frame too damaged to track says so in its row's status."""
+    saved = os.dup(2)
+    try:
+        os.dup2(null, 2)
+        return cv2.imdecode(data, _JPEG_GREY)
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+
+
 def _video_frames(path: Path, meta: dict | None = None) -> Iterator[np.ndarray]:
     """Grey frames of a video, decoded one at a time; on opening, ``meta`` (if
     given) gets the container's ``count`` (>= 1, best effort) and ``fps``.
@@ -406,7 +422,7 @@ def _video_frames(path: Path, meta: dict | None = None) -> Iterator[np.ndarray]:
     refuses, or that comes out another size than the stream's (interlaced
     fields, say), the rest go through OpenCV's own decoding.
     """
-    cap = None
+    cap = null = None
     try:
         cap = cv2.VideoCapture(str(path))
         if not cap.isOpened():
@@ -419,13 +435,14 @@ def _video_frames(path: Path, meta: dict | None = None) -> Iterator[np.ndarray]:
             meta["fps"] = _valid_fps(cap.get(cv2.CAP_PROP_FPS))
         shape = (int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT)), int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)))
         raw = int(cap.get(cv2.CAP_PROP_FOURCC)) == _MJPG and cap.set(cv2.CAP_PROP_FORMAT, -1)
+        null = os.open(os.devnull, os.O_WRONLY) if raw else None
         i = 0
         while True:
             ok, img = cap.read()
             if not ok or img is None:
                 break  # end of stream; a truncated file simply ends early
             if raw:
-                grey = cv2.imdecode(img, _JPEG_GREY) if img.size else None
+                grey = _quiet_imdecode(img, null) if img.size else None
                 if grey is None or grey.shape != shape:
                     raw = False  # this frame again, and the rest, decoded by OpenCV
                     cap.release()
@@ -442,6 +459,8 @@ def _video_frames(path: Path, meta: dict | None = None) -> Iterator[np.ndarray]:
     finally:
         if cap is not None:
             cap.release()
+        if null is not None:
+            os.close(null)
 
 
 def to_float(frame: np.ndarray) -> np.ndarray:

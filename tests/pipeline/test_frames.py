@@ -168,6 +168,22 @@ def test_a_jpeg_frame_refused_hands_the_rest_to_opencv(tmp_path, monkeypatch, re
             np.testing.assert_array_equal(a, b)  # OpenCV's decoding, exactly
 
 
+def test_damaged_motion_jpeg_frames_are_decoded_without_a_word_on_stderr(tmp_path, capfd):
+    """libjpeg prints its warnings on a damaged frame straight to the process's
+    stderr ("Corrupt JPEG data: ..."), where they broke the command line's
+    one-line messages; the frames still come, as FFmpeg gives them."""
+    path = write_frames([smooth(96, 128, phase=0.3 * k) for k in range(6)], tmp_path / "m.avi")
+    data = bytearray(path.read_bytes())
+    rng = np.random.default_rng(1)
+    for i in rng.integers(len(data) // 2, len(data) - 400, 20):
+        data[i] ^= 0x5A
+    path.write_bytes(bytes(data))
+    capfd.readouterr()
+    _, got = read_all(path)
+    assert capfd.readouterr().err == ""
+    assert len(got) >= 1 and all(g.shape == (96, 128) for g in got)
+
+
 def test_mp4_writes_or_says_why(tmp_path):
     truth = [smooth(64, 96, phase=k) for k in range(4)]
     try:
