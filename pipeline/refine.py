@@ -907,11 +907,11 @@ def locate_base(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0,
         return curve
     best = int(k[np.argmin(sse)])
     s_base = 0.5 * (s[best - 1] + s[best])
-    arc, z = resample(curve, 0.5)
     if s_base <= -step:
         # behind: the curve carried back along the base axis, the rest of it
         # kept where it is (shifting it all would take a curled tube's tip off
         # the tube by as much)
+        _, z = resample(curve, 0.5)
         back = curve.base + np.arange(s_base, -0.5 * step, step) * axis
         joints = tuple((j * curve.length - s_base) / (curve.length - s_base)
                        for j in curve.joints)
@@ -921,6 +921,7 @@ def locate_base(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0,
         return replace(curve, base=curve.base + s_base * axis,
                        length=max(curve.length - s_base, 2.0))
     # forward: the curve from there on, its tangent there the base direction
+    arc, z = resample(curve, 0.5)
     keep = arc >= s_base
     return fit_to_polyline(z[keep], float(np.interp(s_base, grid, smp.phi)),
                            n_coef=curve.coef.size)

@@ -218,7 +218,13 @@ def _mean_width(mask: np.ndarray) -> float:
     return float(mask.sum() / skel.sum())
 
 
-def fill_lumen(mask: np.ndarray, *, elongation: float = 4.0) -> np.ndarray:
+#: A hole (or a closing's addition) whose area exceeds this many times that of
+#: its largest inscribed disc is long and thin: a lumen, not the round
+#: background a curled tube encloses.
+LUMEN_ELONGATION = 4.0
+
+
+def fill_lumen(mask: np.ndarray, *, elongation: float = LUMEN_ELONGATION) -> np.ndarray:
     """Fill the holes a visible lumen leaves in the mask, not the background a curl encloses.
 
     A lumen is a long thin hole (its area is many times that of its largest
@@ -315,7 +321,8 @@ def fill_tube(mask: np.ndarray, max_radius: int | None = None, *, fill_ratio: fl
     return closed(0)[0], radii[0]
 
 
-def _filled_a_curl(before: np.ndarray, after: np.ndarray, elongation: float = 4.0) -> bool:
+def _filled_a_curl(before: np.ndarray, after: np.ndarray,
+                   elongation: float = LUMEN_ELONGATION) -> bool:
     """Whether most of what a closing added to ``before`` is one round piece:
     the background a curled tube encloses, its tip closed onto its body. A
     lumen is long and thin (as in :func:`fill_lumen`), or, where the rims
