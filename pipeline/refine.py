@@ -181,6 +181,74 @@ class TubeLook:
 
 
 @dataclass(frozen=True)
+class LastSection:
+    """How a jointed fit's last section could be held in proportion to the
+    rest of the tube, once the frames tell the proportion
+    (:func:`pipeline.track.hold_section_ratio`).
+
+    Both of the paper's models bend every section in proportion to one load
+    (κ_i ∝ p·c_i), so the ratio of the last section's mean curvature to the
+    rest's is the tube's, not the frame's; yet a short last section
+    (10-12 % of the length in three of the paper's eight samples) holds its
+    curvature on a few profiles only, and the tip angle followed their noise.
+
+    Attributes
+    ----------
+    joints : tuple of float
+        The fit's joints (a ratio applies to fits with the same sections).
+    last, before : float
+        Mean curvature of the last section and of the tube before it (from
+        the base to the last joint) in the shape reported, rad per unit of
+        the length fraction.
+    before_turn : float
+        How far the tube turns before the last joint, rad.
+    gain : (K + 1, 2) ndarray
+        The fit's system solved for the two curvatures' rows (coefficients,
+        then the length): how the shape moves to change either.
+    cov : (2, 2) ndarray
+        The two curvatures' rows through that solve (a covariance, in units
+        of ``var``).
+    var : float
+        The edge residuals' variance (their sum of squares per degree of
+        freedom).
+    """
+
+    joints: tuple[float, ...]
+    last: float
+    before: float
+    before_turn: float
+    gain: np.ndarray
+    cov: np.ndarray
+    var: float
+
+    def held(self, ratio: float) -> tuple[np.ndarray, float]:
+        """The change of (coefficients, length) that makes the last section's
+        mean curvature ``ratio`` times the previous one's, and the rise it
+        brings to the residual sum of squares, in units of ``var`` (a
+        chi-square of one degree of freedom where the ratio is the tube's)."""
+        h = np.array([1.0, -ratio])
+        off = self.last - ratio * self.before
+        spread = float(h @ self.cov @ h)
+        if not spread > 0:
+            return np.zeros(self.gain.shape[0]), np.inf
+        return -(self.gain @ h) * (off / spread), off**2 / spread / self.var
+
+
+def _last_section(system: np.ndarray, coef: np.ndarray, joints: tuple[float, ...],
+                  var: float) -> LastSection:
+    """:class:`LastSection` of the shape ``coef`` whose fit solved ``system``."""
+    k = coef.size
+    turns, spans = _rest_turns(k, joints)
+    rows = np.zeros((system.shape[0], 2))
+    rows[:k, 0] = turns[1] / spans[1]
+    rows[:k, 1] = turns[0] / spans[0]
+    gain = np.linalg.solve(system, rows)
+    last, before = rows[:k].T @ coef
+    return LastSection(joints, float(last), float(before), float(turns[0] @ coef),
+                       gain[:k + 1], rows.T @ gain, float(var))
+
+
+@dataclass(frozen=True)
 class Refined:
     """Outcome of refining a curve on one frame.
 
@@ -212,6 +280,9 @@ class Refined:
         The valid profiles' centres' scatter from one profile to the next
         (robust, per profile), px: the edge noise, which a smooth misfit
         does not raise.
+    last_section : LastSection, optional
+        On a jointed fit: what it takes to hold its last section's curvature
+        in proportion to the rest of the tube's, for the shape reported.
     """
 
     curve: Curve
@@ -226,6 +297,7 @@ class Refined:
     midpoints: np.ndarray | None = None
     tip_correction: np.ndarray | None = None
     noise_px: float = float("inf")
+    last_section: LastSection | None = None
 
     @property
     def valid_fraction(self) -> float:
@@ -360,6 +432,8 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
     tip_found = False
     edges = None
     tip_correction = None
+    last_section = None
+    var = np.inf
     it = 0
     for it in range(1, iterations + 1):  # noqa: B007 (it is reported)
         smp = evaluate(curve, basis)
@@ -461,6 +535,11 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
         step_x = np.linalg.solve(lhs + np.diag(damp), rhs)
         move = np.abs(dz @ step_x).max()
         last = move < tol_px or it == iterations
+        if last and not free_base:
+            miss = a_mat @ step_x - b_vec
+            n_data = int(np.count_nonzero(a_mat[:, :k].any(axis=1)))
+            var = (miss @ miss) / max(n_data - k, 1)
+            system, step_rep = lhs + np.diag(damp), step_x
         if last and output_stiffness > tip_stiffness and not free_base:
             # the same step with the tip held stiffer, for the shape reported
             # (one more solve of the same small system; the fit itself, which
@@ -474,11 +553,14 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
             # sum of squares, in units of the fit's residual variance, is a
             # chi-square of about one degree of freedom (a curvature step
             # within the stretch, a joint the fit has not found, rises 27-34)
-            miss, miss_out = a_mat @ step_x - b_vec, a_mat @ step_out - b_vec
-            n_data = int(np.count_nonzero(a_mat[:, :k].any(axis=1)))
-            var = (miss @ miss) / max(n_data - k, 1)
+            miss_out = a_mat @ step_out - b_vec
             if miss_out @ miss_out - miss @ miss <= TIP_OUTPUT_CHI2 * var:
                 tip_correction = step_out[:k] - step_x[:k]
+                system, step_rep = lhs_out + np.diag(damp), step_out
+        if (last and not free_base and curve.joints and np.isfinite(var) and var > 0
+                and not (hold is not None and in_last.any() and valid[in_last].mean() < 0.5)):
+            # (not where the fit itself already held the last section, to the one before)
+            last_section = _last_section(system, curve.coef + step_rep[:k], curve.joints, var)
         curve = curve.with_params(curve.coef + step_x[:k], max(curve.length + step_x[k], 2.0))
         if free_base:
             # B_0 = 1 − Σ_{k≥1} B_k (partition of unity): a change d of the first
@@ -501,7 +583,7 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
     mids = np.where(edges.valid, smp.z[idx] + normals * np.where(edges.valid, edges.centre, 0),
                     np.nan)
     return Refined(curve, u, width, edges.valid, rms, tip_found, it, strength, ~dropped, mids,
-                   tip_correction, noise)
+                   tip_correction, noise, last_section)
 
 
 @lru_cache(maxsize=32)
@@ -510,6 +592,18 @@ def _section_turns(n_coef: int, joints: tuple[float, ...]):
     second-to-last and last sections, and those sections' lengths (fractions)."""
     ends = np.array([joints[-2] if len(joints) > 1 else 0.0, joints[-1], 1.0])
     # φ − φ(0) is the spline without its first function (whose coefficient is 0)
+    values = BSpline.design_matrix(ends, knot_vector(n_coef, joints), 3).toarray()[:, 1:]
+    turns, spans = np.diff(values, axis=0), np.diff(ends)
+    for arr in (turns, spans):
+        arr.flags.writeable = False
+    return turns, spans
+
+
+@lru_cache(maxsize=32)
+def _rest_turns(n_coef: int, joints: tuple[float, ...]):
+    """As :func:`_section_turns`, for the whole tube before the last joint
+    and the last section."""
+    ends = np.array([0.0, joints[-1], 1.0])
     values = BSpline.design_matrix(ends, knot_vector(n_coef, joints), 3).toarray()[:, 1:]
     turns, spans = np.diff(values, axis=0), np.diff(ends)
     for arr in (turns, spans):

@@ -43,6 +43,7 @@ saying why; tracking goes on with the last good shape as the prediction.
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field, replace
 
@@ -73,6 +74,9 @@ from .joints import (
 from .profiles import gradient_noise
 from .refine import (
     STRIP_LINES,
+    TIP_OUTPUT_CHI2,
+    TIP_RATIO_MIN_TURN,
+    LastSection,
     Refined,
     TubeLook,
     antisymmetry,
@@ -185,6 +189,15 @@ BASE_SMOOTHING = 0.1
 #: the full weight, a blurred MJPG scene lost its first frame (the fit bent 8 px
 #: off at the base).
 SKELETON_SMOOTHING = BASE_SMOOTHING / STRIP_LINES
+#: The last section's curvature is held in proportion to the rest of the
+#: tube's (:func:`hold_section_ratio`) once at least this many frames bend
+#: the rest enough to tell the ratio, ...
+RATIO_MIN_FRAMES = 3
+#: ... leaving out frames further than this many of their own standard
+#: deviations from the ratio the others agree on, ...
+RATIO_OUTLIER_SD = 3.5
+#: ... and only where the rest agree on it: their reduced chi-square at most this.
+RATIO_MAX_CHI2 = 4.0
 
 
 @dataclass(frozen=True)
@@ -277,6 +290,9 @@ class FrameTrack:
         The fit itself, where ``curve`` (the shape reported) holds the tip
         stiffer (:data:`pipeline.refine.TIP_OUTPUT_STIFFNESS`): the next
         frame is predicted from it.
+    last_section : LastSection or None
+        For :func:`hold_section_ratio`: how ``curve``'s last section could be
+        held in proportion to the rest of the tube (jointed fits only).
     """
 
     frame: int
@@ -292,6 +308,7 @@ class FrameTrack:
     polarity: int | None = None
     shear_deg: float = float("nan")
     fit: Curve | None = None
+    last_section: LastSection | None = None
 
     @property
     def ok(self) -> bool:
@@ -649,7 +666,9 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
     Yields
     ------
     FrameTrack
-        One per frame, in order.
+        One per frame, in order, as fitted on its own; :func:`hold_section_ratio`
+        then holds a jointed tube's last section to the ratio all frames tell
+        (as :func:`pipeline.tracks.track_video` does).
     """
     settings = settings or TrackSettings()
     look: TubeLook | None = None
@@ -853,7 +872,8 @@ def _refitted(pending, base: complex | None, turn: float, look: TubeLook | None,
         r = refine(image, moved, look, iterations=settings.first_rounds,
                    avoid_contact=result.crossing, tol_px=settings.tol_px)
         out.append(replace(result, curve=_reported(r), fit=r.curve, residual_px=r.residual_px,
-                           valid_fraction=r.valid_fraction) if _good(r, look) else result)
+                           valid_fraction=r.valid_fraction, last_section=r.last_section)
+                   if _good(r, look) else result)
     # a frame lost before a later one was measured (a first frame the tracker
     # could not start on, that the next one started on) is tracked backwards
     # from the nearest measured frame after it
@@ -866,7 +886,8 @@ def _refitted(pending, base: complex | None, turn: float, look: TubeLook | None,
             r = _from_later(pending[i][1], later, look, settings, crossing)
             if r is not None:
                 out[i] = FrameTrack(out[i].frame, "ok", _reported(r), "backward", r.residual_px,
-                                    r.valid_fraction, fit=r.curve, crossing=crossing)
+                                    r.valid_fraction, fit=r.curve, crossing=crossing,
+                                    last_section=r.last_section)
                 later = r.curve
     return out
 
@@ -907,7 +928,8 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
         return (FrameTrack(index, status, _reported(r) if status == "ok" else None, "init",
                            r.residual_px, r.valid_fraction, base_source=source,
                            smooth_px=look.smooth_px, polarity=look.polarity,
-                           fit=r.curve if status == "ok" else None), look)
+                           fit=r.curve if status == "ok" else None,
+                           last_section=r.last_section if status == "ok" else None), look)
     hw = look.mean_half_width
     pred = _predict(history)
     last_length = history[-1].length
@@ -1027,7 +1049,7 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
         return FrameTrack(index, "lost: bend angle jumped by about a turn", None, stage,
                           r.residual_px, r.valid_fraction, work, crossing=crossing)
     return FrameTrack(index, "ok", _reported(r), stage, r.residual_px, r.valid_fraction, work,
-                      crossing=crossing, fit=r.curve)
+                      crossing=crossing, fit=r.curve, last_section=r.last_section)
 
 
 def _reported(r: Refined) -> Curve:
@@ -1037,6 +1059,81 @@ def _reported(r: Refined) -> Curve:
     if r.tip_correction is None or r.tip_correction.size != c.coef.size:
         return c
     return c.with_params(c.coef + r.tip_correction, c.length)
+
+
+def hold_section_ratio(results: list[FrameTrack]) -> tuple[list[FrameTrack], str]:
+    """The frames' shapes with each last section's mean curvature held in
+    proportion to the rest of the tube's (base to last joint), at the one ratio
+    that the bent frames tell together; and a line saying what was done, or
+    left out and why.
+
+    Under both of the paper's models every section's curvature grows with the
+    same load (κ_i ∝ p·c_i), so the ratio is the tube's. Estimated from every
+    frame on which the rest turns at least
+    :data:`pipeline.refine.TIP_RATIO_MIN_TURN` (not at a crossing), by
+    weighted least squares, each frame weighted by how well its fit knows the
+    two curvatures (:class:`pipeline.refine.LastSection`), after dropping
+    frames off by more than :data:`RATIO_OUTLIER_SD`. Held only where the
+    frames agree on it (their reduced chi-square at most
+    :data:`RATIO_MAX_CHI2`: a tube whose sections do not keep in proportion
+    is left as fitted), and on each frame only where holding it raises the
+    edges' residuals by at most :data:`pipeline.refine.TIP_OUTPUT_CHI2` of
+    their variance. Frames fitted with other joints than most are left as
+    they are.
+    """
+    have = [r for r in results if r.ok and r.last_section is not None]
+    if not have:
+        return results, "last section not held to the rest of the tube (no section joints)"
+    joints = Counter(r.last_section.joints for r in have).most_common(1)[0][0]
+    bent = [r.last_section for r in have if r.last_section.joints == joints and not r.crossing
+            and abs(r.last_section.before_turn) >= TIP_RATIO_MIN_TURN]
+    what = "last section not held to the rest of the tube"
+    if len(bent) < RATIO_MIN_FRAMES:
+        return results, (f"{what}: {len(bent)} frames bend the rest by >= "
+                         f"{np.degrees(TIP_RATIO_MIN_TURN):g} deg, too few to tell their ratio")
+    ratio, chi2, used = _pooled_ratio(bent)
+    if used < RATIO_MIN_FRAMES or not chi2 <= RATIO_MAX_CHI2:
+        return results, (f"{what}: the frames do not agree on one ratio of their curvatures "
+                         f"(reduced chi-square {chi2:.1f})")
+    out, held = [], 0
+    for r in results:
+        sec = r.last_section
+        if r.ok and sec is not None and sec.joints == joints:
+            delta, rise = sec.held(ratio)
+            if rise <= TIP_OUTPUT_CHI2:
+                c = r.curve
+                r = replace(r, curve=c.with_params(c.coef + delta[:-1],
+                                                   max(c.length + delta[-1], 2.0)))
+                held += 1
+        out.append(r)
+    return out, (f"last section's mean curvature held at {ratio:.3f} times the rest of the "
+                 f"tube's on {held} of {len(results)} frames (the ratio {used} bent frames "
+                 f"agree on, reduced chi-square {chi2:.1f})")
+
+
+def _pooled_ratio(sections: list[LastSection]) -> tuple[float, float, int]:
+    """The ratio of the last section's mean curvature to the rest's that ``sections``
+    agree on (weighted least squares, with outliers dropped), their reduced
+    chi-square about it, and how many were kept."""
+    last = np.array([s.last for s in sections])
+    before = np.array([s.before for s in sections])
+    cov = np.array([s.cov for s in sections])
+    var = np.array([s.var for s in sections])
+    ratio = float(np.median(last / before))
+    keep = np.ones(last.size, bool)
+    for _ in range(3):
+        # the variance of last − ratio·before on each frame, both being noisy
+        h = np.array([1.0, -ratio])
+        sd = np.sqrt(var * np.einsum("i,fij,j->f", h, cov, h))
+        keep = np.abs(last - ratio * before) <= RATIO_OUTLIER_SD * sd
+        if keep.sum() < RATIO_MIN_FRAMES:
+            break
+        w = 1.0 / sd[keep] ** 2
+        ratio = float(np.sum(w * last[keep] * before[keep]) / np.sum(w * before[keep] ** 2))
+    h = np.array([1.0, -ratio])
+    sd = np.sqrt(var * np.einsum("i,fij,j->f", h, cov, h))
+    chi2 = float(np.mean(((last - ratio * before)[keep] / sd[keep]) ** 2)) if keep.any() else np.inf
+    return ratio, chi2, int(keep.sum())
 
 
 def _due(frames: int) -> bool:

@@ -26,6 +26,7 @@ from .track import (
     SNR_TARGET,
     FrameTrack,
     TrackSettings,
+    hold_section_ratio,
     track_frames,
 )
 
@@ -215,9 +216,10 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
         results = list(track_frames(iter(reader), base_hint=base_hint, base_end=base_end,
                                     first_detection=first_det, progress=tick,
                                     settings=settings, joints=joints))
-    runtime = time.perf_counter() - start
     if not results:
         raise ValueError(f"{source}: no frames to track")
+    results, ratio_note = hold_section_ratio(results)
+    runtime = time.perf_counter() - start
     if um_per_px is not None:
         scale, scale_source = um_per_px, "given (--um-per-px)"
     else:
@@ -229,6 +231,7 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
     stages = Counter(r.stage for r in results if r.stage)
     notes = _notes(results, stages, base_hint is not None, rate)
     notes.append(_joints_note(results, sample))
+    notes.append(ratio_note)
     notes.append(_look_note(results))
     notes.append(_smoothing_note(results))
     if motion_note:

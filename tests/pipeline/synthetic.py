@@ -90,3 +90,16 @@ def relief_image(shape, base, angle, length, kappa, half_width, *, shear=-np.pi 
     if noise:
         img += np.random.default_rng(seed).normal(0, noise, shape)
     return np.clip(img, 0, 1).astype(np.float32)
+
+
+def two_sections(k_body, k_tip, joint=0.8, length=400.0):
+    """A centreline (:class:`pipeline.centreline.Curve`, base at 0, along +x)
+    whose curvature steps from k_body to k_tip (1/px) at the fraction ``joint``
+    of its length."""
+    from pipeline.centreline import fit_to_polyline
+
+    s = np.linspace(0.0, length, 4001)
+    phi = np.where(s < joint * length, k_body * s,
+                   k_body * joint * length + k_tip * (s - joint * length))
+    z = np.concatenate([[0j], np.cumsum(np.exp(1j * 0.5 * (phi[1:] + phi[:-1])) * np.diff(s))])
+    return fit_to_polyline(z, 0.0, n_coef=20, joints=(joint,))

@@ -21,7 +21,7 @@ from pipeline.refine import (
     self_contact,
     widths_at,
 )
-from tests.pipeline.synthetic import _signed_position, arc_axis, tube_image
+from tests.pipeline.synthetic import _signed_position, arc_axis, tube_image, two_sections
 
 SHAPE = (480, 640)
 BASE = 120 - 420j
@@ -127,21 +127,12 @@ def test_the_reported_tip_is_held_stiffer_than_the_fit():
     # the base-tangent fit (free_base) reports its own curve
     assert refine(img, truth, look, iterations=2, free_base=True).tip_correction is None
 
-def _two_sections(k_body, k_tip, joint=0.8, length=400.0):
-    """A curve whose curvature steps from k_body to k_tip (1/px) at ``joint``."""
-    s = np.linspace(0.0, length, 4001)
-    phi = np.where(s < joint * length, k_body * s,
-                   k_body * joint * length + k_tip * (s - joint * length))
-    z = np.concatenate([[0j], np.cumsum(np.exp(1j * 0.5 * (phi[1:] + phi[:-1])) * np.diff(s))])
-    return fit_to_polyline(z, 0.0, n_coef=20, joints=(joint,))
-
-
 def test_section_ratio_is_the_last_section_s_curvature_over_the_one_before_s():
-    assert section_ratio(_two_sections(1 / 100, 1 / 400)) == pytest.approx(0.25, abs=0.01)
-    assert section_ratio(_two_sections(-1 / 100, 1 / 200)) == pytest.approx(-0.5, abs=0.01)
+    assert section_ratio(two_sections(1 / 100, 1 / 400)) == pytest.approx(0.25, abs=0.01)
+    assert section_ratio(two_sections(-1 / 100, 1 / 200)) == pytest.approx(-0.5, abs=0.01)
     # no joints, or a section before too straight to scale from: no ratio
     assert section_ratio(_truth(1 / 250)) is None
-    assert section_ratio(_two_sections(1e-4, 1 / 100)) is None
+    assert section_ratio(two_sections(1e-4, 1 / 100)) is None
 
 
 def test_locate_base_finds_where_the_tube_leaves_a_narrower_pipette():
