@@ -223,7 +223,7 @@ class LastSection:
 
     def held(self, ratio: float) -> tuple[np.ndarray, float]:
         """The change of (coefficients, length) that makes the last section's
-        mean curvature ``ratio`` times the previous one's, and the rise it
+        mean curvature ``ratio`` times the rest of the tube's, and the rise it
         brings to the residual sum of squares, in units of ``var`` (a
         chi-square of one degree of freedom where the ratio is the tube's)."""
         h = np.array([1.0, -ratio])
