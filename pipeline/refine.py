@@ -586,24 +586,25 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
                    tip_correction, noise, last_section)
 
 
-@lru_cache(maxsize=32)
 def _section_turns(n_coef: int, joints: tuple[float, ...]):
     """Rows T with ``T @ coef`` the turns (rad) of a jointed curve's
     second-to-last and last sections, and those sections' lengths (fractions)."""
-    ends = np.array([joints[-2] if len(joints) > 1 else 0.0, joints[-1], 1.0])
-    # φ − φ(0) is the spline without its first function (whose coefficient is 0)
-    values = BSpline.design_matrix(ends, knot_vector(n_coef, joints), 3).toarray()[:, 1:]
-    turns, spans = np.diff(values, axis=0), np.diff(ends)
-    for arr in (turns, spans):
-        arr.flags.writeable = False
-    return turns, spans
+    return _turns_between(n_coef, joints, (joints[-2] if len(joints) > 1 else 0.0,
+                                           joints[-1], 1.0))
 
 
-@lru_cache(maxsize=32)
 def _rest_turns(n_coef: int, joints: tuple[float, ...]):
     """As :func:`_section_turns`, for the whole tube before the last joint
     and the last section."""
-    ends = np.array([0.0, joints[-1], 1.0])
+    return _turns_between(n_coef, joints, (0.0, joints[-1], 1.0))
+
+
+@lru_cache(maxsize=64)
+def _turns_between(n_coef: int, joints: tuple[float, ...], ends: tuple[float, ...]):
+    """Rows T with ``T @ coef`` the turns (rad) between consecutive ``ends``
+    (fractions of the length), and the stretches' lengths (fractions)."""
+    ends = np.array(ends)
+    # φ − φ(0) is the spline without its first function (whose coefficient is 0)
     values = BSpline.design_matrix(ends, knot_vector(n_coef, joints), 3).toarray()[:, 1:]
     turns, spans = np.diff(values, axis=0), np.diff(ends)
     for arr in (turns, spans):
