@@ -39,6 +39,7 @@ from .profiles import FADED_COS, Edges, edge_pairs, end_edge, sample_lines, samp
 #: ±1.5 px were worse on two sets of the five.
 STRIP_LINES = 3
 STRIP_HALF_PX = 1.0
+END_CLEAR_HW = 0.5
 #: Edge-midpoint scatter (px) up to which the roughness penalty keeps its
 #: nominal weight; noisier frames get it scaled by (scatter / this)². Set
 #: as 0.05 px for single-line profiles: the strips' scatter is √STRIP_LINES
@@ -154,6 +155,11 @@ class TubeLook:
         contrast, oblique light), the shear direction: a flank whose inward
         normal faces it shows bright, rad, counter-clockwise from +x (y up);
         see :func:`relief_shear`. Where the tube runs along it, its edges fade.
+    end_clear : bool
+        Leave out the side edges within :data:`END_CLEAR_HW` half-widths of the
+        tube's end (else within 2 px): set once the frames show that the end
+        face's blur pulls them off the line the rest of the tube's edges give
+        (see :attr:`Refined.end_offset`).
     """
 
     polarity: int
@@ -161,6 +167,7 @@ class TubeLook:
     strength: float
     smooth_px: float = 0.8
     shear: float | None = None
+    end_clear: bool = False
 
     def facing(self, normals: np.ndarray):
         """Which way a relief's edges step along profiles in the directions
@@ -298,6 +305,7 @@ class Refined:
     tip_correction: np.ndarray | None = None
     noise_px: float = float("inf")
     last_section: LastSection | None = None
+    end_offset: float = float("nan")
 
     @property
     def valid_fraction(self) -> float:
@@ -316,26 +324,27 @@ def profile_spacing(half_width: float) -> float:
     return float(np.clip(half_width / 3.0, 2.0, 12.0))
 
 
-def _profile_layout(curve: Curve, look: TubeLook, n_grid: int, window: float, width_tol: float):
+def _profile_layout(curve: Curve, look: TubeLook, n_grid: int, window: float, width_tol: float,
+                    clear: float = 2.0):
     hw = look.mean_half_width
     spacing = profile_spacing(hw)
     start = 0.25 * hw / curve.length
     # up to the end: a profile across a flat end still meets both side edges,
     # and one across a rounded end has the wrong width and is dropped
-    stop = 1.0 - 2.0 / curve.length
+    stop = 1.0 - clear / curve.length
     n = max(int((stop - start) * curve.length / spacing), 8)
     u = np.linspace(start, stop, n)
     idx = np.clip(np.round(u * (n_grid - 1)).astype(int), 0, n_grid - 1)
     return (idx, *_profile_offsets(hw, window, width_tol))
 
 
-def _strip_shifts(s: np.ndarray, length: float) -> np.ndarray:
+def _strip_shifts(s: np.ndarray, length: float, clear: float = 2.0) -> np.ndarray:
     """Where each profile's parallel lines lie along the tube, px from it:
     ±:data:`STRIP_HALF_PX`, pulled in where that would reach past the base or
     to within 2 px of the tube's end (the end face is no side edge)."""
     shifts = np.linspace(-STRIP_HALF_PX, STRIP_HALF_PX, STRIP_LINES)
     return np.clip(shifts[None, :], -s[:, None],
-                   np.maximum(length - 2.0 - s, 0.0)[:, None])
+                   np.maximum(length - clear - s, 0.0)[:, None])
 
 
 def _profile_offsets(hw: float, window: float, width_tol: float):
@@ -413,10 +422,12 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
     window = 0.5 * hw if window is None else window
     shift = _crop_shift(origin)
     basis = basis_of(curve)
-    idx, offsets, step = _profile_layout(curve, look, basis.n_grid, window, width_tol)
+    clear = max(2.0, END_CLEAR_HW * hw) if look.end_clear else 2.0
+    idx, offsets, step = _profile_layout(curve, look, basis.n_grid, window, width_tol, clear)
     u = basis.u[idx]
     hw_u = look.half_width_at(u)
-    strips = _strip_shifts(u * curve.length, curve.length)
+    strips = _strip_shifts(u * curve.length, curve.length, clear)
+    end_offset = np.nan
     k = curve.coef.size
     n_extra = 2 if free_base else 0
     n_par = k + 1 + n_extra
@@ -540,6 +551,9 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
             n_data = int(np.count_nonzero(a_mat[:, :k].any(axis=1)))
             var = (miss @ miss) / max(n_data - k, 1)
             system, step_rep = lhs + np.diag(damp), step_x
+            if not look.end_clear:
+                end_offset = _end_offset(a_mat, b_vec, weights, lhs, rhs, damp,
+                                         (1.0 - u) * curve.length < END_CLEAR_HW * hw)
         if last and output_stiffness > tip_stiffness and not free_base:
             # the same step with the tip held stiffer, for the shape reported
             # (one more solve of the same small system; the fit itself, which
@@ -583,7 +597,19 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
     mids = np.where(edges.valid, smp.z[idx] + normals * np.where(edges.valid, edges.centre, 0),
                     np.nan)
     return Refined(curve, u, width, edges.valid, rms, tip_found, it, strength, ~dropped, mids,
-                   tip_correction, noise, last_section)
+                   tip_correction, noise, last_section, end_offset)
+
+
+def _end_offset(a_mat, b_vec, weights, lhs, rhs, damp, near_end) -> float:
+    """How far the edge midpoints near the tube's end lie, on average, from the
+    curve that the other profiles alone would fit (px, along the curve's left
+    normal); NaN when no valid profile is that near."""
+    rows = np.flatnonzero(near_end & (weights > 0))
+    if rows.size == 0:
+        return np.nan
+    a_e, b_e = a_mat[rows], b_vec[rows]
+    x = np.linalg.solve(lhs - a_e.T @ a_e + np.diag(damp), rhs - a_e.T @ b_e)
+    return float(np.sum(b_e - a_e @ x) / np.sum(weights[rows]))
 
 
 def _section_turns(n_coef: int, joints: tuple[float, ...]):

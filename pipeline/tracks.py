@@ -20,6 +20,7 @@ import pandas as pd
 from . import schema as S
 from .atomic import write_csv, write_json
 from .centreline import Curve, resample, tip_point
+from .refine import END_CLEAR_HW
 from .track import (
     EDGE_SCALES,
     JOINT_CHECK_DEG,
@@ -234,6 +235,7 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
     notes.append(ratio_note)
     notes.append(_look_note(results))
     notes.append(_smoothing_note(results))
+    notes.append(_end_note(results))
     if motion_note:
         notes.append(motion_note)
     if total and len(results) < total:
@@ -353,6 +355,20 @@ def _look_note(results) -> str:
                  "; its shear never told (the tube never turned across it): each frame's "
                  "edges were read the one way that fits them best")
     return note
+
+
+def _end_note(results) -> str:
+    """Whether the side edges near the tube's end were left out, and why."""
+    seen = np.array([r.end_offset for r in results if r.ok and np.isfinite(r.end_offset)])
+    told = f"{seen.mean():+.2f} px on average over {seen.size} frames" if seen.size else ""
+    cleared = [r.frame for r in results if r.ok and r.end_clear]
+    if cleared:
+        return (f"side edges within {END_CLEAR_HW:g} half-widths of the tube's end left out "
+                f"from frame {cleared[0]} on: before, they sat off the line the rest of the "
+                f"tube's edges give ({told}; the end face's blur pulled them)")
+    return ("side edges kept up to 2 px from the tube's end" +
+            (f": they sat on the line the rest of the tube's edges give ({told})" if told
+             else ""))
 
 
 def _smoothing_note(results) -> str:
