@@ -184,6 +184,13 @@ class TubeLook:
         c = np.real(normals * np.exp(-1j * self.shear))
         return np.where(c >= 0, 1.0, -1.0), np.abs(c) >= RELIEF_MIN_COS
 
+    @property
+    def end_in_question(self) -> bool:
+        """Whether fits measure :attr:`Refined.end_offset`: a tube brighter than
+        its surroundings at its edges whose end's edges are still in (see
+        :class:`pipeline.track._EndVotes` for why only those)."""
+        return self.polarity == 1 and not self.end_clear
+
     def half_width_at(self, u) -> np.ndarray:
         grid = np.linspace(0.0, 1.0, self.half_width.size)
         return np.interp(u, grid, self.half_width)
@@ -296,6 +303,11 @@ class Refined:
     last_section : LastSection, optional
         On a jointed fit: what it takes to hold its last section's curvature
         in proportion to the rest of the tube's, for the shape reported.
+    end_offset : float
+        How far the edge midpoints within :data:`END_CLEAR_HW` half-widths of
+        the tube's end lie, on average, from the curve the other profiles
+        alone give, px (along the curve's left normal); NaN where not measured
+        (see :attr:`TubeLook.end_in_question`) or no valid profile is that near.
     """
 
     curve: Curve
@@ -557,7 +569,7 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
             n_data = int(np.count_nonzero(a_mat[:, :k].any(axis=1)))
             var = (miss @ miss) / max(n_data - k, 1)
             system, step_rep = lhs + np.diag(damp), step_x
-            if not look.end_clear:
+            if look.end_in_question:
                 end_offset = _end_offset(a_mat, b_vec, weights, lhs, rhs, damp,
                                          (1.0 - u) * curve.length < END_CLEAR_HW * hw)
         if last and output_stiffness > tip_stiffness and not free_base:

@@ -831,7 +831,7 @@ class _EndVotes:
 
     def add(self, offset: float, look: TubeLook) -> TubeLook:
         """``look``, with its end's edges left out once the offsets so far say so."""
-        if look.end_clear or look.polarity != 1 or not np.isfinite(offset):
+        if not look.end_in_question or not np.isfinite(offset):
             return look
         self.offsets.append(offset)
         if len(self.offsets) < END_VOTE_FRAMES:

@@ -366,9 +366,11 @@ def _end_note(results) -> str:
         return (f"side edges within {END_CLEAR_HW:g} half-widths of the tube's end left out "
                 f"from frame {cleared[0]} on: before, they sat off the line the rest of the "
                 f"tube's edges give ({told}; the end face's blur pulled them)")
-    return ("side edges kept up to 2 px from the tube's end" +
-            (f": they sat on the line the rest of the tube's edges give ({told})" if told
-             else ""))
+    if not told:
+        return ("side edges kept up to 2 px from the tube's end (looked at only on a tube "
+                "brighter than its surroundings, with a profile that near its end)")
+    return ("side edges kept up to 2 px from the tube's end: they sat on the line the rest of "
+            f"the tube's edges give ({told})")
 
 
 def _smoothing_note(results) -> str:
