@@ -48,6 +48,13 @@ MIN_F = 20.0
 #: single-section tube and one misplaced one (0.94 for 0.88) on a 6 px tube.
 MIN_WIDTH_STEP = 0.015
 MIN_WIDTH_Z = 5.0
+#: The same, for a step the width record has already shown (a joint kept):
+#: it is dropped only once it falls below this. A faint step hovers about
+#: :data:`MIN_WIDTH_Z` as frames are added (fluorescent sample 5's 0.6 joint,
+#: a 0.7 px step: z 5.3, 4.0, 5.1, 6.3 on 2–6 frames), and dropping it for
+#: a frame leaves a curvature step the coarse spline of known joints cannot
+#: follow.
+HELD_WIDTH_Z = 3.0
 #: F ratio of the fine spline against the coarser one of known joints
 #: (:func:`spacing_f`) from which the coarse one is taken to miss a joint.
 #: Measured on rendered scenes: 0.4–2.5 with every joint known; 3–53 with a
@@ -225,6 +232,7 @@ def _width_scatter(w: np.ndarray) -> float:
 
 def width_steps(u: np.ndarray, width: np.ndarray, half_width: float, length: float, *,
                 min_rel: float = MIN_WIDTH_STEP, min_z: float = MIN_WIDTH_Z,
+                held=(), held_z: float = HELD_WIDTH_Z,
                 max_joints: int = MAX_JOINTS) -> tuple[float, ...]:
     """Joints seen as steps in the tube's measured outer width along its length.
 
@@ -248,6 +256,11 @@ def width_steps(u: np.ndarray, width: np.ndarray, half_width: float, length: flo
     min_z : float
         Smallest step kept, in units of its standard error (from the widths'
         profile-to-profile scatter).
+    held : tuple of float
+        Joints already seen (e.g. on fewer frames): a step within a width of
+        one is kept from ``held_z`` on.
+    held_z : float
+        Smallest step kept there, in standard errors.
 
     Returns
     -------
@@ -276,8 +289,13 @@ def width_steps(u: np.ndarray, width: np.ndarray, half_width: float, length: flo
             continue
         # (1.25: neighbouring profiles' widths are not quite independent)
         z[i] = step / (1.25 * sigma * np.sqrt(1 / left.size + 1 / right.size))
+    bar = np.full(cand.size, float(min_z))
+    for j in held:
+        bar[np.abs(cand - j) < width_u] = min(held_z, min_z)
+    # (a held joint that still steps is taken before a new one that steps more)
+    z = np.where(z >= bar, z, 0.0) / bar
     found: list[float] = []
-    while len(found) < max_joints and z.size and z.max() >= min_z:
+    while len(found) < max_joints and z.size and z.max() > 0:
         best = int(np.argmax(z))
         found.append(float(cand[best]))
         z[np.abs(cand - cand[best]) < 2 * width_u] = 0.0
@@ -361,9 +379,10 @@ def recorded_steps(record: WidthRecord, half_width: float, length: float,
                    spacing_px: float) -> tuple[float, ...]:
     """The joints a width record shows: found as steps (:func:`width_steps`)
     in its means over blocks ``spacing_px`` long (the tracker's profile
-    spacing), then placed on the mean itself (:func:`place_steps`)."""
+    spacing), then placed on the mean itself (:func:`place_steps`). The
+    record's :attr:`~WidthRecord.joints` are held (:data:`HELD_WIDTH_Z`)."""
     mean, u_blocks, blocks = _record_blocks(record, half_width, length, spacing_px)
-    coarse = width_steps(u_blocks, blocks, half_width, length)
+    coarse = width_steps(u_blocks, blocks, half_width, length, held=record.joints)
     if not coarse:
         return ()
     return place_steps(record.u, mean, coarse, half_width, length)

@@ -47,6 +47,7 @@ OUTLINE_LONGER = 1.25
 #: further follows a pipette's walls or the noise (a blurred, noisy pipette:
 #: the base 150 px off).
 OUTLINE_WIDER = 0.5
+OUTLINE_FLOOR = 50.0
 
 
 @dataclass(frozen=True)
@@ -168,7 +169,10 @@ def outline_foreground(contrast: np.ndarray, *, high: float = 6.0, low: float = 
     gx = cv2.Sobel(smooth, cv2.CV_32F, 1, 0, ksize=3)
     gy = cv2.Sobel(smooth, cv2.CV_32F, 0, 1, ksize=3)
     mag = np.hypot(gx, gy)
-    typical = float(np.median(mag))
+    # (at least a fiftieth of the strongest edges': on a nearly noise-free
+    # background the median is the quantisation's, and faint shading and the
+    # pipette's rim would stand as far out of it as the tube's edges)
+    typical = max(float(np.median(mag)), float(np.percentile(mag, 99.9)) / OUTLINE_FLOOR)
     if not typical > 0:
         return np.zeros(contrast.shape, bool)
     return _without_specks(apply_hysteresis_threshold(mag / typical, low, high), min_area_frac)

@@ -1267,9 +1267,21 @@ def _redetect(image, prev: Curve, look: TubeLook, settings: TrackSettings) -> Re
         # or runs into a spur): look for the end farther out, as on a start
         reach = max(2.0 * hw, 0.1 * r.curve.length)
         r = refine(image, r.curve, look, iterations=10, tol_px=tol, tip_window=reach)
-    if (r.curve.coef.size, r.curve.joints) != (prev.coef.size, prev.joints):
-        r = refine(image, rewritten(r.curve, prev.joints, prev.coef.size), look,
-                   iterations=6, tol_px=tol)
+    if (r.curve.coef.size, r.curve.joints) == (prev.coef.size, prev.joints):
+        return r
+    fine = r
+    r = refine(image, rewritten(fine.curve, prev.joints, prev.coef.size), look,
+               iterations=6, tol_px=tol)
+    n_fine = spline_size(length, hw, prev.joints, settings, known=False)
+    if not _good(r, look) and _good(fine, look) and prev.coef.size < n_fine:
+        # the fine spline follows the tube and the last frame's coarser one
+        # cannot: a curvature step at a joint not known (the coarse spacing is
+        # for joints all known), which bends more with every frame (sample 5
+        # whose 0.6 joint's faint width step went unseen: lost from 100 deg on).
+        # Kept at the fine spacing, with the joints that are known
+        cand = refine(image, rewritten(fine.curve, prev.joints, n_fine), look,
+                      iterations=6, tol_px=tol)
+        r = cand if _good(cand, look) else fine
     return r
 
 

@@ -343,6 +343,41 @@ def test_a_joint_whose_width_does_not_step_is_still_followed(tmp_path, monkeypat
     assert acc.angle_max <= ANGLE_MAX_DEG
 
 
+def test_a_frame_the_coarse_spline_cannot_follow_is_found_with_the_fine_one(tmp_path):
+    """Sample 5 tracked with only its 0.9 joint known (its 0.6 joint's faint
+    width step unseen): the coarse spline of known joints cannot follow the
+    curvature step at 0.6 once the tube bends past 100 deg, and a fresh
+    detection rewritten to it failed too, so 7 of 12 frames were lost. The
+    fresh detection's fine spline follows the tube, and is now kept."""
+    from pipeline.frames import open_frames
+    from pipeline.track import track_frames
+
+    scene = default_scene(5, n_frames=12, seed=1, width=800, height=600,
+                          base_angle_deg=222.5)
+    scene_dir = render_scene(scene, tmp_path / "scene", fmt="avi")
+    truth = pd.read_csv(scene_dir / S.TRUTH_TRACKS_FILE)[S.BEND].to_numpy()
+    with open_frames(scene_dir / "frames.avi") as reader:
+        results = list(track_frames(reader, joints=(0.9,)))
+    assert [r.status for r in results] == ["ok"] * len(results)
+    errors = np.array([np.degrees(r.curve.coef[-1]) for r in results]) - truth
+    assert np.median(np.abs(errors)) <= ANGLE_MEDIAN_DEG, errors.round(2)
+
+
+def test_a_noise_free_sharp_fluorescent_tube_is_found_on_its_first_frame(tmp_path):
+    """A noise-free MJPG video of a sharp, dim fluorescent tube: the median
+    gradient over the background is the compression's, and the tube's outline
+    (edges 6x that) took in the faint pipette and the background's blocks as
+    well: a 'tube' 3x too wide and 1.7x too long, whose first frame came out
+    22 deg off. The outline's thresholds now stand at least a fiftieth of the
+    strongest edges high."""
+    look = {"name": "fluorescent", "photons": 1e9, "blur_px": 0.8, "gradient": 0.0, "dust": 0}
+    errors, acc, tracks, truth = _render_and_track(
+        tmp_path, 5, seed=1, n_frames=12, width=800, height=600, base_angle_deg=222.5,
+        look=look)
+    assert abs(errors["angle_error_deg"].iloc[0]) <= ANGLE_MEDIAN_DEG
+    _assert_meets_spec(errors, acc)
+
+
 def test_the_samples_joints_are_used_when_it_is_given(tmp_path):
     """With --sample the joints come from its sections."""
     scene = default_scene(5, seed=7, width=1024, height=768, n_frames=12, look="fluorescent")
