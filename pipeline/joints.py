@@ -289,9 +289,9 @@ def width_steps(u: np.ndarray, width: np.ndarray, half_width: float, length: flo
             continue
         # (1.25: neighbouring profiles' widths are not quite independent)
         z[i] = step / (1.25 * sigma * np.sqrt(1 / left.size + 1 / right.size))
-    bar = np.full(cand.size, float(min_z))
+    bar = np.full(cand.size, max(float(min_z), 1e-12))
     for j in held:
-        bar[np.abs(cand - j) < width_u] = min(held_z, min_z)
+        bar[np.abs(cand - j) < width_u] = max(min(held_z, min_z), 1e-12)
     # (a held joint that still steps is taken before a new one that steps more)
     z = np.where(z >= bar, z, 0.0) / bar
     found: list[float] = []

@@ -47,6 +47,12 @@ OUTLINE_LONGER = 1.25
 #: further follows a pipette's walls or the noise (a blurred, noisy pipette:
 #: the base 150 px off).
 OUTLINE_WIDER = 0.5
+#: The outline's thresholds are multiples of the background's median gradient,
+#: but of at least this fraction of the strongest edges' (99.9th percentile).
+#: A noise-free MJPG frame of a sharp, dim fluorescent tube has a median
+#: gradient 360x below its edges': 6x that took in the pipette and the
+#: compression's blocks (a 'tube' 3x too wide). Mottled backgrounds, where
+#: the outline is needed, have edges only 4-6x their median, and are unchanged.
 OUTLINE_FLOOR = 50.0
 
 
@@ -169,9 +175,8 @@ def outline_foreground(contrast: np.ndarray, *, high: float = 6.0, low: float = 
     gx = cv2.Sobel(smooth, cv2.CV_32F, 1, 0, ksize=3)
     gy = cv2.Sobel(smooth, cv2.CV_32F, 0, 1, ksize=3)
     mag = np.hypot(gx, gy)
-    # (at least a fiftieth of the strongest edges': on a nearly noise-free
-    # background the median is the quantisation's, and faint shading and the
-    # pipette's rim would stand as far out of it as the tube's edges)
+    # (OUTLINE_FLOOR: on a nearly noise-free background the median is the
+    # quantisation's, and faint shading stands as far out of it as the tube)
     typical = max(float(np.median(mag)), float(np.percentile(mag, 99.9)) / OUTLINE_FLOOR)
     if not typical > 0:
         return np.zeros(contrast.shape, bool)

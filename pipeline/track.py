@@ -1251,7 +1251,9 @@ def _redetect(image, prev: Curve, look: TubeLook, settings: TrackSettings) -> Re
 
     As on a start, the skeleton is first followed by the fine spline without
     joints (a coarse one cannot follow its hooks and spurs, and lands far
-    off), then rewritten as ``prev`` is (its joints and spacing)."""
+    off), then rewritten as ``prev`` is (its joints and spacing); where that
+    no longer fits and the fine spline does, it keeps the fine spacing (with
+    ``prev``'s joints if that fits, else none)."""
     det = detect(image, base_hint=_base_col_row(prev))
     if det is None:
         return None
