@@ -79,19 +79,23 @@ def tracks_table(results: list[FrameTrack], scale: float, fps: float | None) -> 
 def centrelines_table(results: list[FrameTrack], scale: float,
                       spacing_px: float = 1.0) -> pd.DataFrame:
     """Long-format centrelines of the measured frames, points ≤ ``spacing_px`` apart."""
-    parts = []
+    frames, arcs, points = [], [], []
     for r in results:
         if not r.ok:
             continue
         s, z = resample(r.curve, spacing_px)
-        # 0.1 nm is far below any image's resolution, and short numbers halve the
-        # time spent writing the CSV (a fifth of a fast run otherwise)
-        parts.append(pd.DataFrame({S.FRAME: r.frame, S.S: np.round(s * scale, 4),
-                                   S.X: np.round(z.real * scale, 4),
-                                   S.Y: np.round(z.imag * scale, 4)}))
-    if not parts:
+        frames.append(np.full(s.size, r.frame))
+        arcs.append(s)
+        points.append(z)
+    if not frames:
         return pd.DataFrame(columns=S.CENTRELINE_COLUMNS)
-    return pd.concat(parts, ignore_index=True)[S.CENTRELINE_COLUMNS]
+    # one table built at the end: a DataFrame per frame cost a third of the writing
+    s, z = np.concatenate(arcs) * scale, np.concatenate(points) * scale
+    # 0.1 nm is far below any image's resolution, and short numbers halve the
+    # time spent writing the CSV (a fifth of a fast run otherwise)
+    return pd.DataFrame({S.FRAME: np.concatenate(frames), S.S: np.round(s, 4),
+                         S.X: np.round(z.real, 4), S.Y: np.round(z.imag, 4)},
+                        columns=S.CENTRELINE_COLUMNS)
 
 
 def curve_record(curve: Curve) -> dict:
