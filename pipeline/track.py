@@ -1182,19 +1182,22 @@ def _pooled_ratio(sections: list[LastSection]) -> tuple[float, float, int]:
     before = np.array([s.before for s in sections])
     cov = np.array([s.cov for s in sections])
     var = np.array([s.var for s in sections])
+
+    def spread(ratio: float) -> np.ndarray:
+        # the sd of last − ratio·before on each frame, both being noisy
+        h = np.array([1.0, -ratio])
+        return np.sqrt(var * np.einsum("i,fij,j->f", h, cov, h))
+
     ratio = float(np.median(last / before))
     keep = np.ones(last.size, bool)
     for _ in range(3):
-        # the variance of last − ratio·before on each frame, both being noisy
-        h = np.array([1.0, -ratio])
-        sd = np.sqrt(var * np.einsum("i,fij,j->f", h, cov, h))
+        sd = spread(ratio)
         keep = np.abs(last - ratio * before) <= RATIO_OUTLIER_SD * sd
         if keep.sum() < RATIO_MIN_FRAMES:
             break
         w = 1.0 / sd[keep] ** 2
         ratio = float(np.sum(w * last[keep] * before[keep]) / np.sum(w * before[keep] ** 2))
-    h = np.array([1.0, -ratio])
-    sd = np.sqrt(var * np.einsum("i,fij,j->f", h, cov, h))
+    sd = spread(ratio)
     chi2 = float(np.mean(((last - ratio * before)[keep] / sd[keep]) ** 2)) if keep.any() else np.inf
     return ratio, chi2, int(keep.sum())
 
