@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import time
 from collections import Counter
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +20,7 @@ import pandas as pd
 from . import schema as S
 from .atomic import write_csv, write_json
 from .centreline import Curve, resample, tip_point
+from .margins import Margins, blank_margins
 from .refine import END_CLEAR_HW
 from .track import (
     EDGE_SCALES,
@@ -211,19 +212,30 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
         if base_hint is not None and not (0 <= base_hint[0] < cols and 0 <= base_hint[1] < rows):
             raise ValueError(f"--base {base_hint} lies outside the {cols}x{rows} image")
         rate = fps or reader.fps
+        first = next(iter(reader), None)
+        margins = blank_margins(first) if first is not None else Margins()
+        frames = _Cropped(reader, margins) if margins else reader
+        if base_hint is not None and margins:
+            base_hint = (base_hint[0] - margins.left, base_hint[1] - margins.top)
+            kept = margins.crop(first).shape
+            if not (0 <= base_hint[0] < kept[1] and 0 <= base_hint[1] < kept[0]):
+                raise ValueError("--base lies in the frame's blank margin (" +
+                                 margins.describe().split(": ", 1)[1] + ")")
 
         def tick(i):
             if progress is not None:
                 progress(i + 1, total)
 
         base_end, motion_note, first_det = ((None, None, None) if base_hint is not None
-                                            else _static_end(reader))
-        results = list(track_frames(iter(reader), base_hint=base_hint, base_end=base_end,
+                                            else _static_end(frames))
+        results = list(track_frames(iter(frames), base_hint=base_hint, base_end=base_end,
                                     first_detection=first_det, progress=tick,
                                     settings=settings, joints=joints))
     if not results:
         raise ValueError(f"{source}: no frames to track")
     results, ratio_note = hold_section_ratio(results)
+    if margins:
+        results = [_moved(r, margins.offset) for r in results]
     runtime = time.perf_counter() - start
     if um_per_px is not None:
         scale, scale_source = um_per_px, "given (--um-per-px)"
@@ -242,6 +254,8 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
     notes.append(_end_note(results))
     if motion_note:
         notes.append(motion_note)
+    if margins:
+        notes.append(margins.describe())
     if total and len(results) < total:
         # a video's header count: a truncated file decodes fewer frames, silently
         notes.append(f"the video ended after {len(results)} of the {total} frames its header "
@@ -261,6 +275,24 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
 
         write_overlay(source, results, out_dir / "overlay.png")
     return run
+
+
+class _Cropped:
+    """A reader's frames without their blank margins (re-iterable, as the reader)."""
+
+    def __init__(self, reader, margins: Margins):
+        self._reader, self._margins = reader, margins
+
+    def __iter__(self):
+        return map(self._margins.crop, self._reader)
+
+
+def _moved(track: FrameTrack, offset: complex) -> FrameTrack:
+    """``track`` with its curves moved by ``offset`` (px, y up): from a crop's
+    pixels to the whole frame's."""
+    def move(curve):
+        return None if curve is None else replace(curve, base=curve.base + offset)
+    return replace(track, curve=move(track.curve), fit=move(track.fit))
 
 
 def _static_end(reader):
