@@ -606,6 +606,13 @@ def _cut_to_edges(r: Refined, half_width: float, run: int = 2) -> Curve | None:
                            joints=curve.joints)
 
 
+def _cut_to_length(curve: Curve, length: float) -> Curve:
+    """``curve`` cut back to its first ``length`` px (same spline size and joints)."""
+    s, z = resample(curve)
+    return fit_to_polyline(z[s <= length], curve.base_angle, n_coef=curve.coef.size,
+                           joints=curve.joints)
+
+
 def _edge_gap(r: Refined, run: int = 3, *, from_tip: bool = False) -> float:
     """Arc length from the base (or the tip) to the first of ``run`` consecutive
     profiles that found the tube's edges, px (0 if there is none)."""
@@ -1282,6 +1289,15 @@ def _redetect(image, prev: Curve, look: TubeLook, settings: TrackSettings) -> Re
         # or runs into a spur): look for the end farther out, as on a start
         reach = max(2.0 * hw, 0.1 * r.curve.length)
         r = refine(image, r.curve, look, iterations=10, tol_px=tol, tip_window=reach)
+    if r.curve.length > (1.0 + MAX_LENGTH_STEP) * prev.length:
+        # the skeleton ran on past the tip into something that touches it (a
+        # label, a scale bar, a dark corner of the field) and the end was found
+        # there; the tube keeps its length from frame to frame, so its end is
+        # looked for again where the last frame's length puts it
+        cand = refine(image, _cut_to_length(r.curve, prev.length), look, iterations=10,
+                      tol_px=tol)
+        if _accepted(cand, look, prev.length):
+            r = cand
     if (r.curve.coef.size, r.curve.joints) == (prev.coef.size, prev.joints):
         return r
     fine = r
