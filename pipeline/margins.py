@@ -62,11 +62,15 @@ class Margins:
         col − 1j·row (the centrelines' y-up convention)."""
         return complex(self.left, -self.top)
 
+    def sides(self) -> str:
+        """The margins that are there, e.g. "60 top, 60 bottom px"."""
+        return ", ".join(f"{n} {name}" for name, n in (
+            ("top", self.top), ("bottom", self.bottom), ("left", self.left),
+            ("right", self.right)) if n) + " px"
+
     def describe(self) -> str:
-        sides = [f"{n} {name}" for name, n in (("top", self.top), ("bottom", self.bottom),
-                                              ("left", self.left), ("right", self.right)) if n]
         return ("blank margins cropped away (bars or lines along the border, no part of the "
-                "scene): " + ", ".join(sides) + " px")
+                "scene): " + self.sides())
 
 
 def frame_noise(image: np.ndarray) -> float:

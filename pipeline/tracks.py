@@ -212,15 +212,16 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
         if base_hint is not None and not (0 <= base_hint[0] < cols and 0 <= base_hint[1] < rows):
             raise ValueError(f"--base {base_hint} lies outside the {cols}x{rows} image")
         rate = fps or reader.fps
-        first = next(iter(reader), None)
+        frame_iter = iter(reader)
+        first = next(frame_iter, None)
+        frame_iter.close()
         margins = blank_margins(first) if first is not None else Margins()
         frames = _Cropped(reader, margins) if margins else reader
         if base_hint is not None and margins:
             base_hint = (base_hint[0] - margins.left, base_hint[1] - margins.top)
             kept = margins.crop(first).shape
             if not (0 <= base_hint[0] < kept[1] and 0 <= base_hint[1] < kept[0]):
-                raise ValueError("--base lies in the frame's blank margin (" +
-                                 margins.describe().split(": ", 1)[1] + ")")
+                raise ValueError(f"--base lies in the frame's blank margin ({margins.sides()})")
 
         def tick(i):
             if progress is not None:
