@@ -12,6 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.stats import median_abs_deviation
 
 from .track import as_float
 
@@ -77,8 +78,8 @@ def frame_noise(image: np.ndarray) -> float:
     """Robust pixel noise σ of a frame, from neighbouring pixels' differences
     (floored at half a grey level of 8-bit video: a noise-free frame has none)."""
     diff = np.diff(image[::4], axis=1)  # (every 4th row: a million pixels are not needed)
-    mad = np.median(np.abs(diff - np.median(diff)))
-    return max(float(1.4826 * mad / np.sqrt(2.0)), 0.5 / 255)
+    mad = median_abs_deviation(diff, axis=None, scale="normal")
+    return max(float(mad / np.sqrt(2.0)), 0.5 / 255)
 
 
 def blank_margins(image: np.ndarray) -> Margins:
@@ -143,5 +144,5 @@ def _side(lines: np.ndarray, sigma: float) -> int:
 def _levels(block: np.ndarray, sigma: float):
     """Each line's median, and whether it is flat (see :data:`FLAT_SIGMA`)."""
     level = np.median(block, axis=1)
-    spread = 1.4826 * np.median(np.abs(block - level[:, None]), axis=1)
+    spread = median_abs_deviation(block, axis=1, scale="normal")
     return level, spread <= FLAT_SIGMA * sigma

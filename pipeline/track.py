@@ -599,11 +599,7 @@ def _cut_to_edges(r: Refined, half_width: float, run: int = 2) -> Curve | None:
     gap = _edge_gap(r, run, from_tip=True)
     if gap < 2.0 * half_width or gap > 0.5 * r.curve.length:
         return None
-    curve = r.curve
-    s, z = resample(curve)
-    keep = s <= curve.length - gap + half_width
-    return fit_to_polyline(z[keep], curve.base_angle, n_coef=curve.coef.size,
-                           joints=curve.joints)
+    return _cut_to_length(r.curve, r.curve.length - gap + half_width)
 
 
 def _cut_to_length(curve: Curve, length: float) -> Curve:
