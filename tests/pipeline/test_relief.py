@@ -180,7 +180,12 @@ def test_a_bending_relief_tube_is_followed_frame_to_frame():
     results = list(track_frames(frames, base_hint=(BASE.real, -BASE.imag)))
     assert all(r.ok for r in results), [r.status for r in results]
     errors = np.abs(np.degrees([r.curve.coef[-1] for r in results]) - np.degrees(kappas * LENGTH))
-    assert np.median(errors) <= 0.5 and errors.max() <= 1.0, errors
+    # (max 0.45 deg while the side edges ran to 2 px from the end; since they
+    # stop half a width short of a relief's end, 1.55 deg on the frame whose
+    # tip runs 23 deg off the shear: its faint last edges are cleared too, and
+    # the tip tangent is extrapolated. See test_a_relief_tube_s_end_face_does_
+    # not_bend_its_tip for what that clearance is for)
+    assert np.median(errors) <= 0.5 and errors.max() <= 2.0, errors
     # the shear is told once, when the tube has turned across it
     told = [r.shear_deg for r in results if np.isfinite(r.shear_deg)]
     assert len(told) == 1 and abs(told[0] - np.degrees(SHEAR_ALONG)) < 5.0
