@@ -165,8 +165,8 @@ class TubeLook:
         Leave out the side edges within :data:`END_CLEAR_HW` half-widths of the
         tube's end (else within 2 px): set once the frames show that the end
         face's blur pulls them off the line the rest of the tube's edges give
-        (see :attr:`Refined.end_offset`). A relief (``polarity`` 0) leaves
-        them out as if this were set.
+        (see :attr:`Refined.end_offset`). A relief leaves them out whether
+        or not this is set (:attr:`clears_end`).
     """
 
     polarity: int
@@ -184,6 +184,15 @@ class TubeLook:
             return None, None
         c = np.real(normals * np.exp(-1j * self.shear))
         return np.where(c >= 0, 1.0, -1.0), np.abs(c) >= RELIEF_MIN_COS
+
+    @property
+    def clears_end(self) -> bool:
+        """Whether fits leave out the side edges within :data:`END_CLEAR_HW`
+        half-widths of the tube's end: once :attr:`end_clear` is set, and on
+        every relief, which shows its end face as a line pair as strong as the
+        tube's edges, whose flanks the profiles nearest the end run along (DIC,
+        end face across the shear: a tip bent 10 deg on 2 of 8 scenes)."""
+        return self.end_clear or self.polarity == 0
 
     @property
     def end_in_question(self) -> bool:
@@ -441,10 +450,7 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
     window = 0.5 * hw if window is None else window
     shift = _crop_shift(origin)
     basis = basis_of(curve)
-    # a relief shows the end face as a line pair as strong as the tube's edges,
-    # whose flanks the profiles nearest the end run along (DIC, end face across
-    # the shear: a tip bent 10 deg on 2 of 8 scenes): those are left out as well
-    clear = max(2.0, END_CLEAR_HW * hw) if look.end_clear or look.polarity == 0 else 2.0
+    clear = max(2.0, END_CLEAR_HW * hw) if look.clears_end else 2.0
     idx, offsets, step = _profile_layout(curve, look, basis.n_grid, window, width_tol, clear)
     u = basis.u[idx]
     hw_u = look.half_width_at(u)

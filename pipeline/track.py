@@ -310,7 +310,7 @@ class FrameTrack:
         measured).
     end_clear : bool
         The fit left out the side edges near the tube's end
-        (:attr:`pipeline.refine.TubeLook.end_clear`).
+        (:attr:`pipeline.refine.TubeLook.clears_end`).
     """
 
     frame: int
@@ -758,7 +758,7 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
         if result.ok:
             history = (history + [result.tracked])[-2:]
             lost_run = 0
-            result = replace(result, end_clear=look.end_clear)
+            result = replace(result, end_clear=look.clears_end)
             if not result.crossing:
                 look = end_votes.add(result.end_offset, look)
             if look.polarity == 0 and look.shear is None and not result.crossing:
@@ -946,7 +946,7 @@ def _refitted(pending, base: complex | None, turn: float, look: TubeLook | None,
                    avoid_contact=result.crossing, tol_px=settings.tol_px)
         out.append(replace(result, curve=_reported(r), fit=r.curve, residual_px=r.residual_px,
                            valid_fraction=r.valid_fraction, last_section=r.last_section,
-                           end_clear=look.end_clear)
+                           end_clear=look.clears_end)
                    if _good(r, look) else result)
     # a frame lost before a later one was measured (a first frame the tracker
     # could not start on, that the next one started on) is tracked backwards
@@ -1269,7 +1269,9 @@ def _redetect(image, prev: Curve, look: TubeLook, settings: TrackSettings) -> Re
     joints (a coarse one cannot follow its hooks and spurs, and lands far
     off), then rewritten as ``prev`` is (its joints and spacing); where that
     no longer fits and the fine spline does, it keeps the fine spacing (with
-    ``prev``'s joints if that fits, else none)."""
+    ``prev``'s joints if that fits, else none). A tube found longer than
+    ``prev`` by more than a length step has its end looked for again at
+    ``prev``'s length, before the rewrite and after it (:func:`_length_held`)."""
     det = detect(image, base_hint=_base_col_row(prev))
     if det is None:
         return None

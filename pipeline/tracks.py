@@ -399,6 +399,10 @@ def _end_note(results) -> str:
     seen = np.array([r.end_offset for r in results if r.ok and np.isfinite(r.end_offset)])
     told = f"{seen.mean():+.2f} px on average over {seen.size} frames" if seen.size else ""
     cleared = [r.frame for r in results if r.ok and r.end_clear]
+    if cleared and not told:
+        # (a relief's are left out on every frame, without a measurement)
+        return (f"side edges within {END_CLEAR_HW:g} half-widths of the tube's end left out: "
+                "a relief shows its end face as a line as strong as the tube's edges")
     if cleared:
         return (f"side edges within {END_CLEAR_HW:g} half-widths of the tube's end left out "
                 f"from frame {cleared[0]} on: before, they sat off the line the rest of the "
