@@ -16,7 +16,10 @@ refinement fails. Steps, at a working resolution of at most ~512 px:
    which would also fill the background enclosed by a curled tube;
 4. skeleton → pixel graph → the longest path of the largest structure; its
    width profile (distance transform) separates the narrower pipette from the
-   tube, which gives the base (where the tube leaves the pipette).
+   tube, which gives the base (where the tube leaves the pipette);
+5. where that finds nothing, or only a line a few pixels wide (a faint tube
+   under strong noise, or one rim of it), all of it again at 2x and 4x
+   coarser resolution, which averages the noise down.
 """
 
 from __future__ import annotations
@@ -54,6 +57,15 @@ OUTLINE_WIDER = 0.5
 #: compression's blocks (a 'tube' 3x too wide). Mottled backgrounds, where
 #: the outline is needed, have edges only 4-6x their median, and are unchanged.
 OUTLINE_FLOOR = 50.0
+#: Where the working scale finds no tube, or one under THIN_HALF_WIDTH working
+#: pixels in half-width, the frame is searched again at these multiples of
+#: it, coarser (while that leaves at least COARSE_MIN_PX on its shorter side),
+#: and what that finds is taken when it is at least COARSE_LENGTH as long and
+#: over twice as wide (:data:`OUTLINE_WIDER`).
+COARSER = (2, 4)
+THIN_HALF_WIDTH = 3.0
+COARSE_MIN_PX = 64
+COARSE_LENGTH = 0.8
 
 
 @dataclass(frozen=True)
@@ -473,6 +485,25 @@ def detect(image: np.ndarray, *, base_hint=None, base_end=None) -> Detection | N
         None when no elongated structure stands out from the background.
     """
     f = working_scale(image.shape)
+    det = _detect_at(image, f, base_hint, base_end)
+    # a noisy frame: the tube, or one of a hollow tube's rims, stands out of the
+    # noise only once more of it is averaged; each coarser scale averages 4x the
+    # pixels. Tried only while what is found is nothing or a line a few pixels
+    # wide, and kept where it finds a wider tube at least about as long
+    for coarse in COARSER:
+        if not ((det is None or det.half_width < THIN_HALF_WIDTH * f)
+                and min(image.shape) / (coarse * f) >= COARSE_MIN_PX):
+            break
+        wide = _detect_at(image, coarse * f, base_hint, base_end)
+        if wide is not None and (det is None or (
+                wide.length >= COARSE_LENGTH * det.length
+                and det.half_width < OUTLINE_WIDER * wide.half_width)):
+            det = wide
+    return det
+
+
+def _detect_at(image: np.ndarray, f: int, base_hint, base_end) -> Detection | None:
+    """:func:`detect` at 1/``f`` resolution."""
     contrast, _ = contrast_image(image, f)
     # the tube by its own contrast, and by its outline: a transparent tube on a
     # mottled background, no darker than the darker patches, differs from them

@@ -79,6 +79,27 @@ def test_a_transparent_tube_on_a_mottled_background_is_found_by_its_outline():
     assert np.median(near) <= 1.5
 
 
+@pytest.mark.parametrize("noise", [0.045, 0.07])
+def test_a_tube_lost_in_noise_at_the_working_scale_is_found_at_a_coarser_one(noise):
+    """A faint transparent tube under strong camera noise (4.5-7 % of full
+    scale, per pixel): at the working scale the mask finds nothing or a speck
+    of noise, while by eye, and at a coarser scale, the tube is plain."""
+    image, z = _first_frame(2, {"name": "low_contrast", "read_noise": noise})
+    f = segment.working_scale(image.shape)
+    fine = segment._detect_at(image, f, None, None)
+    length = float(np.abs(np.diff(z)).sum())
+    assert fine is None or fine.length < 0.5 * length
+    det = segment.detect(image)
+    assert det is not None
+    # the whole tube (with a bit of the pipette), lying along the true
+    # centreline, at its width (27 px)
+    assert 0.95 * length <= det.length <= 1.1 * length
+    ahead = np.real((det.path - z[0]) * np.conj(z[5] - z[0])) > 0
+    near = np.min(np.abs(det.path[ahead][:, None] - z[None, ::4]), axis=1)
+    assert np.median(near) <= 2.5
+    assert 2 * det.half_width == pytest.approx(27.0, rel=0.25)
+
+
 @pytest.mark.parametrize("sample, angle, look, seed", [
     (1, 235.0, {"name": "low_contrast", "photons": 816.0}, 1),
     (1, 235.0, {"name": "low_contrast", "photons": 816.0}, 5),
