@@ -59,6 +59,21 @@ def test_nan_samples_never_make_an_edge():
     assert not e.valid.any()
 
 
+def test_a_profile_running_off_the_image_shows_no_step_at_the_border():
+    """A blurred dark tube's end (at 0), then a background that darkens towards
+    the image's border (vignetting), which the profile leaves at +25 px. Its
+    missing samples were filled with the mean of all samples, brighter than the
+    darkened border: a brightening step there, as strong as the blurred end,
+    and the outermost, so the end was put at the border."""
+    off = np.arange(-35, 35.25, 0.25)
+    body = 0.5 * (1 + erf((0.0 - off) / (4.0 * np.sqrt(2))))   # end blurred by 4 px
+    background = 0.8 - 0.45 * (np.clip(off - 10, 0, None) / 15.0) ** 2
+    prof = body * 0.3 + (1 - body) * background
+    prof[off > 25.0] = np.nan
+    pos, strength = end_edge(prof[None, :], 0.25, polarity=-1, window=30.0)
+    assert abs(pos[0]) < 0.25 and strength[0] > 0
+
+
 def test_end_edge_takes_the_outermost_strong_step():
     off = np.arange(-30, 30.25, 0.25)
     body = 0.5 * (1 + erf((0.0 - off) / 0.8))           # tube ends at 0
