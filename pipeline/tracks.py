@@ -19,6 +19,7 @@ import pandas as pd
 
 from . import schema as S
 from .atomic import write_csv, write_json
+from .binning import Binned, Binning
 from .centreline import Curve, resample, tip_point
 from .margins import Margins, blank_margins
 from .refine import END_CLEAR_HW
@@ -227,14 +228,26 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
             if progress is not None:
                 progress(i + 1, total)
 
+        # a tube many pixels wide is tracked on binned frames (see pipeline.binning)
+        first_det = _first_detection(frames)
+        binning = (Binning.for_half_width(first_det.half_width) if first_det is not None
+                   else Binning())
+        if binning:
+            wide_hw = first_det.half_width
+            frames = Binned(frames, binning)
+            first_det = _first_detection(frames)
+            if base_hint is not None:
+                base_hint = binning.to_binned(*base_hint)
         base_end, motion_note, first_det = ((None, None, None) if base_hint is not None
-                                            else _static_end(frames))
+                                            else _static_end(frames, first_det))
         results = list(track_frames(iter(frames), base_hint=base_hint, base_end=base_end,
                                     first_detection=first_det, progress=tick,
                                     settings=settings, joints=joints))
     if not results:
         raise ValueError(f"{source}: no frames to track")
     results, ratio_note = hold_section_ratio(results)
+    if binning:
+        results = [binning.track_back(r) for r in results]
     if margins:
         results = [_moved(r, margins.offset) for r in results]
     runtime = time.perf_counter() - start
@@ -251,12 +264,14 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
     notes.append(_joints_note(results, sample))
     notes.append(ratio_note)
     notes.append(_look_note(results))
-    notes.append(_smoothing_note(results))
+    notes.append(_smoothing_note(results, binning))
     notes.append(_end_note(results))
     if motion_note:
         notes.append(motion_note)
     if margins:
         notes.append(margins.describe())
+    if binning:
+        notes.append(binning.describe(wide_hw))
     if total and len(results) < total:
         # a video's header count: a truncated file decodes fewer frames, silently
         notes.append(f"the video ended after {len(results)} of the {total} frames its header "
@@ -296,19 +311,26 @@ def _moved(track: FrameTrack, offset: complex) -> FrameTrack:
     return replace(track, curve=move(track.curve), fit=move(track.fit))
 
 
-def _static_end(reader):
-    """Which end is held, from the video, when the first frame cannot tell.
-
-    Returns ``(base_end, note, detection)``: a point near the base end (col,
-    row) or None, a line for the run's notes (None when the test was not
-    needed), and the first frame's detection when it stands as it is.
-    """
-    from .motion import end_motion
-    from .segment import AMBIGUOUS_BASE, detect
+def _first_detection(frames):
+    """The tube found on the first of ``frames`` (None if none, or no frame)."""
+    from .segment import detect
     from .track import as_float
 
-    first = next(iter(reader), None)
-    det = detect(as_float(first)) if first is not None else None
+    first = next(iter(frames), None)
+    return detect(as_float(first)) if first is not None else None
+
+
+def _static_end(reader, det):
+    """Which end is held, from the video, when the first frame cannot tell.
+
+    ``det`` is the first frame's detection. Returns ``(base_end, note,
+    detection)``: a point near the base end (col, row) or None, a line for the
+    run's notes (None when the test was not needed), and the first frame's
+    detection when it stands as it is.
+    """
+    from .motion import end_motion
+    from .segment import AMBIGUOUS_BASE
+
     if det is None or det.base_source != AMBIGUOUS_BASE:
         return None, None, det
     ends = det.path[[0, -1]]
@@ -414,20 +436,21 @@ def _end_note(results) -> str:
             f"the tube's edges give ({told})")
 
 
-def _smoothing_note(results) -> str:
+def _smoothing_note(results, binning: Binning) -> str:
     """How much the edge profiles were smoothed, and why."""
     chosen = sorted({r.smooth_px for r in results if np.isfinite(r.smooth_px)})
     if not chosen:
         return "edge profiles: no start found a tube"
+    px = "binned px" if binning else "px"
     if chosen == [EDGE_SCALES[0]]:
-        return (f"edge profiles smoothed over {chosen[0]:g} px, the narrowest tried: the tube's "
-                "edges stood clear of the frame's noise")
-    why = (f"where the narrowest ({EDGE_SCALES[0]:g} px) left the tube's edges less than "
+        return (f"edge profiles smoothed over {chosen[0]:g} {px}, the narrowest tried: the "
+                "tube's edges stood clear of the frame's noise")
+    why = (f"where the narrowest ({EDGE_SCALES[0]:g} {px}) left the tube's edges less than "
            f"{SNR_TARGET:g}x above the frame's noise")
     if len(chosen) == 1:
-        return f"edge profiles smoothed over {chosen[0]:g} px, not the narrowest: {why}"
+        return f"edge profiles smoothed over {chosen[0]:g} {px}, not the narrowest: {why}"
     where = ", ".join(f"{s:g}" for s in chosen)
-    return f"edge profiles smoothed over {where} px, chosen afresh at each start: wider {why}"
+    return f"edge profiles smoothed over {where} {px}, chosen afresh at each start: wider {why}"
 
 
 def _run_record(run: TrackRun, source, rate, results, settings: TrackSettings) -> dict:
