@@ -152,19 +152,27 @@ def test_edges_are_taken_as_sharp_as_the_noise_allows():
 
 
 def test_the_run_says_which_edge_smoothing_each_start_chose():
+    from pipeline.binning import Binning
     from pipeline.track import FrameTrack
     from pipeline.tracks import _smoothing_note
 
     def start(smooth):
         return FrameTrack(0, "ok", None, "init", smooth_px=smooth)
 
+    def note(results, binning=None):
+        return _smoothing_note(results, binning or Binning())
+
     later = FrameTrack(1, "ok", None, "fast")  # frames after a start carry none
-    assert _smoothing_note([start(0.8), later]).startswith(
+    assert note([start(0.8), later]).startswith(
         "edge profiles smoothed over 0.8 px, the narrowest tried")
-    assert "over 1.6 px, not the narrowest" in _smoothing_note([start(1.6), later])
-    assert "over 0.8, 1.6 px, chosen afresh at each start" in _smoothing_note(
+    assert "over 1.6 px, not the narrowest" in note([start(1.6), later])
+    assert "over 0.8, 1.6 px, chosen afresh at each start" in note(
         [start(1.6), later, start(0.8)])
-    assert _smoothing_note([later]) == "edge profiles: no start found a tube"
+    assert note([later]) == "edge profiles: no start found a tube"
+    # on binned frames the smoothing is the search's, in their pixels
+    binned = note([start(1.6), later], Binning(2))
+    assert "over 1.6 binned px, not the narrowest" in binned
+    assert "the narrowest (0.8 binned px)" in binned
 
 
 def test_the_run_says_how_the_tube_looked():
