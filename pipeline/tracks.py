@@ -229,17 +229,18 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
                 progress(i + 1, total)
 
         # a tube many pixels wide is tracked on binned frames (see pipeline.binning)
-        first_det = _first_detection(frames)
+        first_det = _first_detection(frames, base_hint)
         binning = (Binning.for_half_width(first_det.half_width) if first_det is not None
                    else Binning())
         if binning:
             wide_hw = first_det.half_width
             frames = Binned(frames, binning)
-            first_det = _first_detection(frames)
             if base_hint is not None:
                 base_hint = binning.to_binned(*base_hint)
-        base_end, motion_note, first_det = ((None, None, None) if base_hint is not None
-                                            else _static_end(frames, first_det))
+            first_det = _first_detection(frames, base_hint)
+        base_end, motion_note = None, None
+        if base_hint is None:
+            base_end, motion_note, first_det = _static_end(frames, first_det)
         results = list(track_frames(iter(frames), base_hint=base_hint, base_end=base_end,
                                     first_detection=first_det, progress=tick,
                                     settings=settings, joints=joints))
@@ -311,13 +312,14 @@ def _moved(track: FrameTrack, offset: complex) -> FrameTrack:
     return replace(track, curve=move(track.curve), fit=move(track.fit))
 
 
-def _first_detection(frames):
-    """The tube found on the first of ``frames`` (None if none, or no frame)."""
+def _first_detection(frames, base_hint=None):
+    """The tube found on the first of ``frames`` (None if none, or no frame),
+    its base at ``base_hint`` (col, row) if given."""
     from .segment import detect
     from .track import as_float
 
     first = next(iter(frames), None)
-    return detect(as_float(first)) if first is not None else None
+    return detect(as_float(first), base_hint=base_hint) if first is not None else None
 
 
 def _static_end(reader, det):
