@@ -96,12 +96,3 @@ class Binning:
                 f"{2 * MAX_HALF_WIDTH_PX:g} px the edge search is built for; the curves are "
                 "given in the frames' own pixels")
 
-
-class Binned:
-    """A reader's (or crop's) frames binned (re-iterable, as the reader)."""
-
-    def __init__(self, frames, binning: Binning):
-        self._frames, self._binning = frames, binning
-
-    def __iter__(self):
-        return map(self._binning.frame, self._frames)

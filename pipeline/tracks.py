@@ -19,7 +19,7 @@ import pandas as pd
 
 from . import schema as S
 from .atomic import write_csv, write_json
-from .binning import Binned, Binning
+from .binning import Binning
 from .centreline import Curve, resample, tip_point
 from .margins import Margins, blank_margins
 from .refine import END_CLEAR_HW
@@ -217,7 +217,7 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
         first = next(frame_iter, None)
         frame_iter.close()
         margins = blank_margins(first) if first is not None else Margins()
-        frames = _Cropped(reader, margins) if margins else reader
+        frames = _Mapped(reader, margins.crop) if margins else reader
         if base_hint is not None and margins:
             base_hint = (base_hint[0] - margins.left, base_hint[1] - margins.top)
             kept = margins.crop(first).shape
@@ -234,7 +234,7 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
                    else Binning())
         if binning:
             wide_hw = first_det.half_width
-            frames = Binned(frames, binning)
+            frames = _Mapped(frames, binning.frame)
             if base_hint is not None:
                 base_hint = binning.to_binned(*base_hint)
             first_det = _first_detection(frames, base_hint)
@@ -294,14 +294,15 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
     return run
 
 
-class _Cropped:
-    """A reader's frames without their blank margins (re-iterable, as the reader)."""
+class _Mapped:
+    """A reader's frames, each passed through ``view`` (re-iterable, as the
+    reader): without their blank margins, binned."""
 
-    def __init__(self, reader, margins: Margins):
-        self._reader, self._margins = reader, margins
+    def __init__(self, frames, view):
+        self._frames, self._view = frames, view
 
     def __iter__(self):
-        return map(self._margins.crop, self._reader)
+        return map(self._view, self._frames)
 
 
 def _moved(track: FrameTrack, offset: complex) -> FrameTrack:
