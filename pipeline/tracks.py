@@ -32,6 +32,7 @@ from .track import (
     hold_section_ratio,
     track_frames,
 )
+from .view import cut_by_border
 
 
 def scale_from_length(results: list[FrameTrack], length_um: float) -> tuple[float, int]:
@@ -246,6 +247,9 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
                                     settings=settings, joints=joints))
     if not results:
         raise ValueError(f"{source}: no frames to track")
+    rows, cols = (margins.crop(first) if margins else first).shape[:2]
+    results, view_note = cut_by_border(
+        results, (rows // binning.factor, cols // binning.factor))
     results, ratio_note = hold_section_ratio(results)
     if binning:
         results = [binning.track_back(r) for r in results]
@@ -267,6 +271,8 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
     notes.append(_look_note(results))
     notes.append(_smoothing_note(results, binning))
     notes.append(_end_note(results))
+    if view_note:
+        notes.append(view_note)
     if motion_note:
         notes.append(motion_note)
     if margins:

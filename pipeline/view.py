@@ -1,0 +1,97 @@
+"""Frames on which the tube runs out of the image.
+
+A tube curling near the edge of the field of view runs out of it: the
+tracker then follows the part still in view, which ends at the image's
+border, and that part's end tangent is not the tip's (a scene cut 45 px above
+a tube whose tip passed 8 px outside: the bend came out 96-132 deg against
+112-160 deg, with the length 6-8 % short). A tube whose outer wall is cut by
+the border, its tip in view, loses the edges it is fitted to there (sample 1
+curled into the top border: 4.3 % short, the bend 4.2 deg off). Such frames
+are told by two things together, neither of which is enough alone: the tube
+is shorter than on the frames that show it well inside the image, and the
+border lies within that missing length of the fitted centreline (a tube with
+a length ΔL missing can only reach the border within ΔL of the part seen).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from .centreline import Curve, basis_of, evaluate
+from .track import FrameTrack
+
+#: A frame's tube counts as short where its length is this much under the
+#: reference (the tracker's length errors are well under 1 %).
+SHORT_FRACTION = 0.02
+#: Frames whose tube (past :data:`FROM_U`) lies farther than this fraction of
+#: its length from every border of the image give the reference length.
+CLEAR_FRACTION = 0.1
+#: The stretch looked at starts this far along the tube (a fraction of its
+#: length): its base may sit at the border, the pipette coming from outside.
+FROM_U = 0.2
+#: Slack on the border's distance, px: a centreline fitted to a tube cut by
+#: the border lies up to about a half-width inside it.
+REACH_SLACK_PX = 2.0
+#: The status of a frame whose tube runs out of the image.
+OUT_OF_VIEW = "tube cut by the image's border (part of it out of view)"
+
+
+def _to_border(curve: Curve, rows: int, cols: int) -> float:
+    """Least distance from the image's border to ``curve`` past :data:`FROM_U`, px."""
+    basis = basis_of(curve)
+    z = evaluate(curve, basis).z[basis.u >= FROM_U]
+    col, row = z.real, -z.imag
+    return float(np.min([col, row, cols - 1 - col, rows - 1 - row]))
+
+
+def cut_by_border(results: list[FrameTrack], shape: tuple[int, int]
+                  ) -> tuple[list[FrameTrack], str | None]:
+    """Mark the frames whose tube runs out of the image as not measured.
+
+    Parameters
+    ----------
+    results : list of FrameTrack
+        The tracked frames, their curves in the pixels of the frames tracked.
+    shape : (rows, cols)
+        Size of the frames tracked, px.
+
+    Returns
+    -------
+    results : list of FrameTrack
+        The same frames, those whose tube runs out of the image with status
+        :data:`OUT_OF_VIEW` and no curve.
+    note : str or None
+        A line for the run's notes (None when every tube stayed well inside).
+
+    Notes
+    -----
+    The reference length is the median over the frames whose tube is clear
+    of the border: one of them measured short does not move it.
+    """
+    ok = [i for i, r in enumerate(results) if r.ok]
+    if not ok:
+        return results, None
+    rows, cols = shape
+    length = np.array([results[i].curve.length for i in ok])
+    to_border = np.array([_to_border(results[i].curve, rows, cols) for i in ok])
+    clear = to_border > CLEAR_FRACTION * np.median(length)
+    if clear.all():
+        return results, None
+    if not clear.any():
+        return results, ("the tube passes near the image's border on every frame: whether "
+                         "it runs out of view could not be checked (no frame shows it clear)")
+    reference = float(np.median(length[clear]))
+    missing = reference - length
+    out = (missing > SHORT_FRACTION * reference) & (to_border <= missing + REACH_SLACK_PX)
+    if not out.any():
+        return results, None
+    marked = list(results)
+    for i in np.flatnonzero(out):
+        r = results[ok[i]]
+        marked[ok[i]] = replace(r, status=OUT_OF_VIEW, curve=None, fit=None, last_section=None)
+    short = 100 * np.max(missing[out]) / reference
+    return marked, (f"tube cut by the image's border on {int(out.sum())} of {len(results)} "
+                    f"frames: it reached the border up to {short:.0f} % shorter than on the "
+                    "frames that show it clear of it; those frames are not measured")
