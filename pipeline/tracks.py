@@ -21,6 +21,7 @@ from . import schema as S
 from .atomic import write_csv, write_json
 from .binning import Binning
 from .centreline import Curve, resample, tip_point
+from .field import Field, field_stop
 from .margins import Margins, blank_margins
 from .refine import END_CLEAR_HW
 from .track import (
@@ -219,6 +220,10 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
         frame_iter.close()
         margins = blank_margins(first) if first is not None else Margins()
         frames = _Mapped(reader, margins.crop) if margins else reader
+        # (on the frame without its margins: a letterboxed field stop)
+        stop = field_stop(margins.crop(first)) if first is not None else Field()
+        if stop:
+            frames = _Mapped(frames, stop.fill)
         if base_hint is not None and margins:
             base_hint = (base_hint[0] - margins.left, base_hint[1] - margins.top)
             kept = margins.crop(first).shape
@@ -247,9 +252,13 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
                                     settings=settings, joints=joints))
     if not results:
         raise ValueError(f"{source}: no frames to track")
-    rows, cols = (margins.crop(first) if margins else first).shape[:2]
+    rows, cols = margins.crop(first).shape[:2]
+    disc = None
+    if stop:
+        col, row = binning.to_binned(stop.centre.real, stop.centre.imag)
+        disc = (complex(col, row), stop.lit_radius / binning.factor)
     results, view_note = cut_by_border(
-        results, (rows // binning.factor, cols // binning.factor))
+        results, (rows // binning.factor, cols // binning.factor), disc)
     results, ratio_note = hold_section_ratio(results)
     if binning:
         results = [binning.track_back(r) for r in results]
@@ -277,6 +286,8 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
         notes.append(motion_note)
     if margins:
         notes.append(margins.describe())
+    if stop:
+        notes.append(stop.describe())
     if binning:
         notes.append(binning.describe(wide_hw))
     if total and len(results) < total:

@@ -1,4 +1,4 @@
-"""Frames on which the tube runs out of the image.
+"""Frames on which the tube runs out of the image (or out of a field stop's disc).
 
 A tube curling near the edge of the field of view runs out of it: the
 tracker then follows the part still in view, which ends at the image's
@@ -38,15 +38,19 @@ REACH_SLACK_PX = 2.0
 OUT_OF_VIEW = "tube cut by the image's border (part of it out of view)"
 
 
-def _to_border(curve: Curve, rows: int, cols: int) -> float:
-    """Least distance from the image's border to ``curve`` past :data:`FROM_U`, px."""
+def _to_border(curve: Curve, rows: int, cols: int, disc) -> float:
+    """Least distance from the view's border to ``curve`` past :data:`FROM_U`, px."""
     basis = basis_of(curve)
     z = evaluate(curve, basis).z[basis.u >= FROM_U]
     col, row = z.real, -z.imag
-    return float(np.min([col, row, cols - 1 - col, rows - 1 - row]))
+    near = float(np.min([col, row, cols - 1 - col, rows - 1 - row]))
+    if disc is not None:
+        centre, radius = disc
+        near = min(near, float(np.min(radius - np.abs(col + 1j * row - centre))))
+    return near
 
 
-def cut_by_border(results: list[FrameTrack], shape: tuple[int, int]
+def cut_by_border(results: list[FrameTrack], shape: tuple[int, int], disc=None
                   ) -> tuple[list[FrameTrack], str | None]:
     """Mark the frames whose tube runs out of the image as not measured.
 
@@ -56,6 +60,9 @@ def cut_by_border(results: list[FrameTrack], shape: tuple[int, int]
         The tracked frames, their curves in the pixels of the frames tracked.
     shape : (rows, cols)
         Size of the frames tracked, px.
+    disc : (complex, float), optional
+        A round field of view within the frames: its centre (col + 1j·row)
+        and radius, px (see :mod:`pipeline.field`).
 
     Returns
     -------
@@ -75,23 +82,27 @@ def cut_by_border(results: list[FrameTrack], shape: tuple[int, int]
         return results, None
     rows, cols = shape
     length = np.array([results[i].curve.length for i in ok])
-    to_border = np.array([_to_border(results[i].curve, rows, cols) for i in ok])
+    to_border = np.array([_to_border(results[i].curve, rows, cols, disc) for i in ok])
     clear = to_border > CLEAR_FRACTION * np.median(length)
-    if clear.all():
-        return results, None
+    # beyond a field stop's lit disc the frame is filled from the disc's edge:
+    # a tube followed out there follows that fill, not the tube
+    out = to_border < 0 if disc is not None else np.zeros(len(ok), bool)
+    note = None
     if not clear.any():
-        return results, ("the tube passes near the image's border on every frame: whether "
-                         "it runs out of view could not be checked (no frame shows it clear)")
-    reference = float(np.median(length[clear]))
-    missing = reference - length
-    out = (missing > SHORT_FRACTION * reference) & (to_border <= missing + REACH_SLACK_PX)
+        note = ("the tube passes near the image's border on every frame: whether it runs "
+                "out of view could not be checked (no frame shows it clear)")
+    elif not clear.all():
+        reference = float(np.median(length[clear]))
+        missing = reference - length
+        out |= (missing > SHORT_FRACTION * reference) & (to_border <= missing + REACH_SLACK_PX)
     if not out.any():
-        return results, None
+        return results, note
     marked = list(results)
     for i in np.flatnonzero(out):
         r = results[ok[i]]
         marked[ok[i]] = replace(r, status=OUT_OF_VIEW, curve=None, fit=None, last_section=None)
-    short = 100 * np.max(missing[out]) / reference
-    return marked, (f"tube cut by the image's border on {int(out.sum())} of {len(results)} "
-                    f"frames: it reached the border up to {short:.0f} % shorter than on the "
-                    "frames that show it clear of it; those frames are not measured")
+    border = "the image's border" + (" or the field stop's edge" if disc is not None else "")
+    return marked, (f"tube cut by {border} on {int(out.sum())} of {len(results)} frames "
+                    f"(shorter there, by over {100 * SHORT_FRACTION:g} %, than on the frames that "
+                    "show it clear of the border, or followed past the field stop's lit disc): "
+                    "those frames are not measured")
