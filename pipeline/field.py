@@ -95,10 +95,13 @@ class Field:
         """Distance from (col, row) to the lit disc's edge, px (negative beyond it)."""
         return self.lit_radius - np.abs(np.asarray(col) + 1j * np.asarray(row) - self.centre)
 
-    def describe(self) -> str:
+    def describe(self, origin=(0, 0)) -> str:
+        """A line for the run's notes; ``origin`` (col, row) is where the frame
+        the field was found on lies in the whole frame (a crop's corner)."""
+        col, row = self.centre.real + origin[0], self.centre.imag + origin[1]
         return (f"round field of view (a field stop): the lit disc of radius {self.radius:.0f} px "
-                f"about ({self.centre.real:.0f}, {self.centre.imag:.0f}); the frame beyond "
-                f"{self.lit_radius:.0f} px filled from the disc's edge, which bounds the view")
+                f"about ({col:.0f}, {row:.0f}); the frame beyond {self.lit_radius:.0f} px "
+                "filled from the disc's edge, which bounds the view")
 
 
 def field_stop(image: np.ndarray) -> Field:

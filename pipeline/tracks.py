@@ -287,7 +287,7 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
     if margins:
         notes.append(margins.describe())
     if stop:
-        notes.append(stop.describe())
+        notes.append(stop.describe((margins.left, margins.top)))
     if binning:
         notes.append(binning.describe(wide_hw))
     if total and len(results) < total:

@@ -92,3 +92,8 @@ def test_a_video_through_a_field_stop_is_tracked_as_without_it(tmp_path):
     assert acc.angle_median <= 0.5 and acc.angle_max <= 2.0
     assert acc.length_error_max_pct <= 1.0
     assert acc.centreline_rms_px <= 0.5
+
+
+def test_the_note_gives_the_disc_in_the_whole_frame_s_pixels():
+    # found on a frame cropped 3 px from the left and 4 from the top
+    assert "about (13, 24)" in Field(10 + 20j, 5.0, 4.0).describe((3, 4))
