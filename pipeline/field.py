@@ -91,10 +91,6 @@ class Field:
         out.reshape(-1, channels)[self._beyond] = smooth.reshape(-1, channels)[self._source]
         return out
 
-    def to_edge(self, col, row):
-        """Distance from (col, row) to the lit disc's edge, px (negative beyond it)."""
-        return self.lit_radius - np.abs(np.asarray(col) + 1j * np.asarray(row) - self.centre)
-
     def describe(self, origin=(0, 0)) -> str:
         """A line for the run's notes; ``origin`` (col, row) is where the frame
         the field was found on lies in the whole frame (a crop's corner)."""

@@ -220,13 +220,13 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
         frame_iter.close()
         margins = blank_margins(first) if first is not None else Margins()
         frames = _Mapped(reader, margins.crop) if margins else reader
+        kept = margins.crop(first).shape[:2] if first is not None else (0, 0)
         # (on the frame without its margins: a letterboxed field stop)
         stop = field_stop(margins.crop(first)) if first is not None else Field()
         if stop:
             frames = _Mapped(frames, stop.fill)
         if base_hint is not None and margins:
             base_hint = (base_hint[0] - margins.left, base_hint[1] - margins.top)
-            kept = margins.crop(first).shape
             if not (0 <= base_hint[0] < kept[1] and 0 <= base_hint[1] < kept[0]):
                 raise ValueError(f"--base lies in the frame's blank margin ({margins.sides()})")
 
@@ -252,7 +252,7 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
                                     settings=settings, joints=joints))
     if not results:
         raise ValueError(f"{source}: no frames to track")
-    rows, cols = margins.crop(first).shape[:2]
+    rows, cols = kept
     disc = None
     if stop:
         col, row = binning.to_binned(stop.centre.real, stop.centre.imag)

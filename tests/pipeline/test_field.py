@@ -60,7 +60,7 @@ def test_the_dark_beyond_the_disc_is_filled_from_its_edge_and_the_field_left_alo
     filled = stop.fill(frame)
     rows, cols = frame.shape
     yy, xx = np.mgrid[0:rows, 0:cols]
-    inside = stop.to_edge(xx, yy) >= 0
+    inside = np.abs(xx + 1j * yy - stop.centre) <= stop.lit_radius
     np.testing.assert_array_equal(filled[inside], frame[inside])
     # the corners now carry the field's level, and the frame itself is untouched
     assert abs(float(np.median(filled[~inside])) - 180.0) < 5.0
