@@ -159,3 +159,45 @@ def end_motion(frames: Iterable[np.ndarray], path_rc, radius_px: float,
         return float(np.median(change[rc[:, 0], rc[:, 1]]))
 
     return EndMotion(near_end(path, arc), near_end(path, arc[-1] - arc), n)
+
+
+#: A place moved when its change (see :func:`change_map`) is at least this.
+MOVED = 8.0
+
+
+def moved_elsewhere(frames: Iterable[np.ndarray], path_rc, half_width_px: float,
+                    **kwargs) -> float:
+    """How much of the scene away from a structure moved over the video.
+
+    The check behind a tracked tube that stood still: a tube being inflated
+    bends, and sweeps an area about its own; a fibre, a scratch or a chamber's
+    edge in the frame, which the detector may take for the tube, does not.
+
+    Parameters
+    ----------
+    frames : iterable of (rows, cols) ndarray
+        The video from its first frame.
+    path_rc : (M, 2) array
+        The structure's centreline, (row, col) full-frame px, ≤ 1 px apart.
+    half_width_px : float
+        Its half-width, px.
+
+    Returns
+    -------
+    float
+        The area that moved farther than three half-widths (and 2 working px)
+        from the structure, over the structure's own area (2 half-widths times
+        its length).
+    """
+    change, factor, n = change_map(frames, 0.5 * half_width_px, **kwargs)
+    path = np.asarray(path_rc, dtype=float)
+    if n < 2 or path.shape[0] < 2:
+        return 0.0
+    near = np.ones(change.shape, np.uint8)
+    rc = np.clip(np.rint((path - (factor - 1) / 2) / factor).astype(int), 0,
+                 np.array(change.shape) - 1)
+    near[rc[:, 0], rc[:, 1]] = 0
+    far = cv2.distanceTransform(near, cv2.DIST_L2, 5) > max(3.0 * half_width_px / factor, 2.0)
+    length = float(np.hypot(*np.diff(path, axis=0).T).sum())
+    return float(((change >= MOVED) & far).sum() * factor**2 / max(2.0 * half_width_px * length,
+                                                                    1.0))

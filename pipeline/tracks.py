@@ -250,6 +250,7 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
         results = list(track_frames(iter(frames), base_hint=base_hint, base_end=base_end,
                                     first_detection=first_det, progress=tick,
                                     settings=settings, joints=joints))
+        results, still_note = _stood_still(frames, results, first_det)
     if not results:
         raise ValueError(f"{source}: no frames to track")
     rows, cols = kept
@@ -282,6 +283,8 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
     notes.append(_end_note(results))
     if view_note:
         notes.append(view_note)
+    if still_note:
+        notes.append(still_note)
     if motion_note:
         notes.append(motion_note)
     if margins:
@@ -338,6 +341,46 @@ def _first_detection(frames, base_hint=None):
 
     first = next(iter(frames), None)
     return detect(as_float(first), base_hint=base_hint) if first is not None else None
+
+
+#: A tracked tube whose tip stayed within this many half-widths (and 2 px) of
+#: its first place, on every frame, stood still.
+STILL_HALF_WIDTHS = 1.0
+#: ... and the scene moved elsewhere, over this share of the tube's own area:
+#: another structure bent (an inflated tube sweeps about its own area).
+MOVED_ELSEWHERE = 0.5
+#: The status of the frames of a tube that stood still while another moved.
+NOT_THE_TUBE = ("the structure tracked stood still while another one moved (a fibre, a "
+                "scratch or an edge taken for the tube?)")
+
+
+def _stood_still(frames, results, det):
+    """The frames, not measured if what was tracked stood still while the scene
+    moved elsewhere; and a note then (else None).
+
+    A fibre, a scratch or a chamber's edge in the frame can be longer and
+    stand out more than the tube, and be taken for it: its angle is then no
+    bend of the tube. A tube being inflated bends; so the scene's change over
+    the video (:func:`pipeline.motion.moved_elsewhere`) is looked at, once,
+    only where the tracked tube's tip stayed put on every frame.
+    """
+    from .motion import moved_elsewhere
+
+    ok = [r for r in results if r.ok]
+    if det is None or len(results) < 3 or len(ok) < 2:
+        return results, None
+    tips = np.array([tip_point(r.curve) for r in ok])
+    if np.abs(tips - tips[0]).max() > max(2.0, STILL_HALF_WIDTHS * det.half_width):
+        return results, None
+    _, z = resample(ok[0].curve)
+    share = moved_elsewhere(iter(frames), np.c_[-z.imag, z.real], det.half_width)
+    if share < MOVED_ELSEWHERE:
+        return results, None
+    marked = [replace(r, status=NOT_THE_TUBE, curve=None, fit=None, last_section=None)
+              if r.ok else r for r in results]
+    return marked, (f"not measured: the structure tracked stood still over the video, while "
+                    f"{share:.1f}x its area moved elsewhere (another structure bent there: "
+                    "the tube?)")
 
 
 def _static_end(reader, det):
