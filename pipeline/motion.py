@@ -21,6 +21,9 @@ the wrong end).
 The test needs one cheap pass over (at most) the first few hundred frames at
 a working resolution of ≤ 256 px, and is run only when the first frame leaves
 the base end ambiguous.
+
+The same change tells a tube from a static structure taken for it
+(:func:`moved_elsewhere`): run only when the tracked tube stood still.
 """
 
 from __future__ import annotations

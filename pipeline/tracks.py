@@ -378,9 +378,9 @@ def _stood_still(frames, results, det):
         return results, None
     marked = [replace(r, status=NOT_THE_TUBE, curve=None, fit=None, last_section=None)
               if r.ok else r for r in results]
-    return marked, (f"not measured: the structure tracked stood still over the video, while "
-                    f"{share:.1f}x its area moved elsewhere (another structure bent there: "
-                    "the tube?)")
+    return marked, (f"the structure tracked stood still over the video, while {share:.1f}x "
+                    "its area moved elsewhere (another structure bent there: the tube?): "
+                    "its frames are not measured")
 
 
 def _static_end(reader, det):
