@@ -127,6 +127,13 @@ def change_map(frames: Iterable[np.ndarray], smooth_px: float, *, target: int = 
     return out, factor, n
 
 
+def _to_working(points_rc: np.ndarray, factor: int, shape) -> np.ndarray:
+    """Full-frame (row, col) px to the change map's (``factor`` px each),
+    as int indices clipped to its ``shape``."""
+    rc = np.rint((np.asarray(points_rc, dtype=float) - (factor - 1) / 2) / factor).astype(int)
+    return np.clip(rc, 0, np.array(shape) - 1)
+
+
 def end_motion(frames: Iterable[np.ndarray], path_rc, radius_px: float,
                **kwargs) -> EndMotion:
     """Compare how much the scene changes at the two ends of a tube.
@@ -157,8 +164,7 @@ def end_motion(frames: Iterable[np.ndarray], path_rc, radius_px: float,
     arc = even
 
     def near_end(points, dist):
-        rc = np.rint((points[dist <= radius_px] - (factor - 1) / 2) / factor).astype(int)
-        rc = np.clip(rc, 0, np.array(change.shape) - 1)
+        rc = _to_working(points[dist <= radius_px], factor, change.shape)
         return float(np.median(change[rc[:, 0], rc[:, 1]]))
 
     return EndMotion(near_end(path, arc), near_end(path, arc[-1] - arc), n)
@@ -197,8 +203,7 @@ def moved_elsewhere(frames: Iterable[np.ndarray], path_rc, half_width_px: float,
     if n < 2 or path.shape[0] < 2:
         return 0.0
     near = np.ones(change.shape, np.uint8)
-    rc = np.clip(np.rint((path - (factor - 1) / 2) / factor).astype(int), 0,
-                 np.array(change.shape) - 1)
+    rc = _to_working(path, factor, change.shape)
     near[rc[:, 0], rc[:, 1]] = 0
     far = cv2.distanceTransform(near, cv2.DIST_L2, 5) > max(3.0 * half_width_px / factor, 2.0)
     length = float(np.hypot(*np.diff(path, axis=0).T).sum())
