@@ -158,6 +158,13 @@ BASE_TURN_MIN_DEG = 0.02
 #: has grown by :data:`JOINT_CHECK_GROWTH` (a step shows more the more it bends).
 JOINT_CHECK_DEG = 45.0
 JOINT_CHECK_GROWTH = 1.25
+#: A fit whose edges' residual exceeds RESIDUAL_JUMP times the median of the
+#: last RESIDUAL_JUMP_FRAMES frames' (and RESIDUAL_JUMP_MIN_PX) is searched
+#: again as a failed one is (from the last shape, and the tube found afresh),
+#: and the best fit of those kept.
+RESIDUAL_JUMP = 4.0
+RESIDUAL_JUMP_MIN_PX = 0.3
+RESIDUAL_JUMP_FRAMES = 4
 #: Fractions of the detection mask's width tried as the tube's width on the
 #: first fit (the strongest edge pairs win): the mask of a strong, thin band
 #: spreads over its blurred skirts, to twice the width of a 6 px opaque tube;
@@ -721,16 +728,20 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
     shear_votes = _ShearVotes()
     # how far the edges near the tube's end sit off the rest's line, until that tells
     end_votes = _EndVotes()
+    # the edges' residual on the last frames measured (not at crossings)
+    residuals: list[float] = []
     # (each with its frame as float32)
     pending: list[tuple[FrameTrack, np.ndarray]] | None = [] if base_hint is None else None
     for index, frame in enumerate(frames):
         det = first_detection if index == 0 else None
         search = bool(history) and abs(history[-1].coef[-1]) >= search_from
+        typical = (float(np.median(residuals))
+                   if history and len(residuals) >= RESIDUAL_JUMP_FRAMES else None)
         result = _track_one(index, frame, look, history, held_base, base_end, det, settings,
-                            known, search, tip_ratio, widths)
+                            known, search, tip_ratio, widths, typical)
         if isinstance(result, tuple):  # (re)initialised: a new look, a new history
             old_look, (result, look) = look, result
-            history = []
+            history, residuals = [], []
             if old_look is not None and old_look.shear is not None and look.polarity == 0:
                 look = replace(look, shear=old_look.shear)  # the microscope's, not the tube's
             if old_look is not None and old_look.end_clear:
@@ -757,6 +768,8 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
             image = image.copy() if image is frame else image
         if result.ok:
             history = (history + [result.tracked])[-2:]
+            if not result.crossing:
+                residuals = (residuals + [result.residual_px])[-RESIDUAL_JUMP_FRAMES:]
             lost_run = 0
             result = replace(result, end_clear=look.clears_end)
             if not result.crossing:
@@ -981,7 +994,8 @@ def _from_later(image: np.ndarray, later: Curve, look: TubeLook, settings: Track
 
 
 def _track_one(index, frame, look, history, base_hint, base_end, detection, settings,
-               known, search=False, tip_ratio=None, widths: WidthRecord | None = None):
+               known, search=False, tip_ratio=None, widths: WidthRecord | None = None,
+               typical_residual: float | None = None):
     if frame.ndim != 2:
         raise ValueError(f"frame {index} is not a greyscale 2-D array: shape {frame.shape}")
     if look is None or not history:
@@ -1012,9 +1026,16 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
     def accept(r: Refined) -> bool:
         return _accepted(r, look, last_length)
 
+    def steady(r: Refined) -> bool:
+        # the edges fit about as well as on the last frames: a fit that passes
+        # the checks with residuals many times the video's own has settled on a
+        # wrong shape (from a prediction that the motion's reversal left behind)
+        return (typical_residual is None or crossing
+                or r.residual_px <= max(RESIDUAL_JUMP_MIN_PX, RESIDUAL_JUMP * typical_residual))
+
     def rank(r: Refined) -> float:
         # of several fits, the best scored that passes the checks
-        return _score(r) * (1.0 if accept(r) else 0.1)
+        return _score(r) * (1.0 if accept(r) and steady(r) else 0.3 if accept(r) else 0.1)
 
     crossing = self_contact(pred, hw)
     # a section the crossing hides keeps its curvature in step with the one before
@@ -1041,7 +1062,7 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
     whole = (r0, r1, c0, c1) == (0, frame.shape[0], 0, frame.shape[1])
     image = crop if whole else None      # the float frame, made once when needed
     cut = not whole and _reaches_crop_edge(r.curve, hw, (r0, r1, c0, c1), frame.shape)
-    if cut or not accept(r):
+    if cut or not accept(r) or not steady(r):
         image = as_float(frame) if image is None else image
         cands = [] if cut else [r]
         # without a velocity the prediction is the last shape itself: one start
@@ -1056,7 +1077,7 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
         # when the fast fit failed: a coarse jointed spline, pulled far from the
         # last shape, can settle on a wrong curl that fits well enough (320x240,
         # sample 7: 127° where the tube bent −18°, accepted; found afresh: −18.6°)
-        if (not accept(r) or len(history) < 2) and not crossing:
+        if (not (accept(r) and steady(r)) or len(history) < 2) and not crossing:
             cand = _redetect(image, history[-1], look, settings)
             if cand is not None and rank(cand) > rank(r):
                 r = cand
