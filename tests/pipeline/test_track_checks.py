@@ -86,8 +86,24 @@ def test_the_base_tangent_goes_to_the_median_of_the_slightly_bent_frames():
     votes = [(d(1), 0.0), (d(10), d(-0.6)), (d(20), d(-0.8)), (d(25), d(-0.7)),
              (d(60), d(2.5)), (d(120), d(2.9)), (d(15), d(-7.0))]
     assert np.degrees(track._settled_turn(votes)) == pytest.approx(-0.65)
-    # too few votes: the first frame's tangent stays
+    # too few little-bent votes, and the bent ones disagree: the first frame's
+    # tangent stays
     assert track._settled_turn(votes[:2] + votes[4:]) == 0.0
+
+
+def test_a_video_that_starts_bent_takes_its_bent_frames_votes_when_they_agree():
+    d = np.radians
+    # deflating from 176°: every frame bent past the little-bent limit
+    bends = d([176, 160, 144, 128, 112, 96, 80, 64])
+    agree = d([0.0, -1.4, -1.5, -1.3, -1.4, -1.2, -1.4, -1.6])
+    turn = track._settled_turn(list(zip(bends, agree, strict=True)))
+    assert np.degrees(turn) == pytest.approx(-1.4)
+    # votes that scatter by degrees (a noisy tube), or drift with the bend
+    # (φ(0) pulled by the roughness penalty), are no measurement of the tangent
+    scatter = d([0.0, -2.1, 0.0, 2.2, -0.4, 2.2, -0.5, 1.8])
+    assert track._settled_turn(list(zip(bends, scatter, strict=True))) == 0.0
+    drift = d(np.linspace(0.0, 2.0, 8))
+    assert track._settled_turn(list(zip(bends, drift, strict=True))) == 0.0
 
 
 def test_a_restart_keeps_the_base_found_before():
