@@ -991,30 +991,42 @@ def _refitted(pending, base: complex | None, turn: float, look: TubeLook | None,
     # a frame lost before a later one was measured (a first frame the tracker
     # could not start on, that the next one started on) is tracked backwards
     # from the nearest measured frame after it
-    later = None
+    later = after = None
     for i in range(len(out) - 1, -1, -1):
         if out[i].ok:
-            later = out[i].tracked
+            later, after = out[i].tracked, later
         elif later is not None and look is not None:
             crossing = self_contact(later, look.mean_half_width)
-            r = _from_later(pending[i][1], later, look, settings, crossing)
+            r = _from_later(pending[i][1], later, look, settings, crossing, after)
             if r is not None:
                 out[i] = FrameTrack(out[i].frame, "ok", _reported(r), "backward", r.residual_px,
                                     r.valid_fraction, fit=r.curve, crossing=crossing,
                                     last_section=r.last_section)
-                later = r.curve
+                later, after = r.curve, later
+            else:
+                after = None    # no motion to carry on across a frame not found
     return out
 
 
 def _from_later(image: np.ndarray, later: Curve, look: TubeLook, settings: TrackSettings,
-                crossing: bool) -> Refined | None:
+                crossing: bool, after: Curve | None = None) -> Refined | None:
     """The tube in ``image`` found from the shape of a later frame (which
     touches itself if ``crossing``), as the wide and redetect searches would
-    from an earlier one; None if the fits fail the checks (:func:`_accepted`)."""
-    r = refine(image, later, look, window=1.5 * look.mean_half_width, iterations=10,
-               avoid_contact=crossing, tol_px=settings.tol_px)
-    if _accepted(r, look, later.length):
-        return r
+    from an earlier one; None if the fits fail the checks (:func:`_accepted`).
+    With ``after``, the frame after that, also from the two shapes' motion
+    carried on backwards (the better-scored fit kept)."""
+    starts = [later]
+    if after is not None and (after.coef.size, after.joints) == (later.coef.size, later.joints):
+        # backwards, the motion between the later frames carries on as it does
+        # forwards (a deflating curl: 25 deg a frame, which the later shape
+        # alone leaves too far behind on a tight curl)
+        starts.append(_predict([after, later]))
+    fits = [refine(image, start, look, window=1.5 * look.mean_half_width, iterations=10,
+                   avoid_contact=crossing or self_contact(start, look.mean_half_width),
+                   tol_px=settings.tol_px) for start in starts]
+    fits = [r for r in fits if _accepted(r, look, later.length)]
+    if fits:
+        return max(fits, key=_score)
     # moved too far for that: found afresh from the later frame's base
     r = _redetect(image, later, look, settings)
     return r if _accepted(r, look, later.length) else None

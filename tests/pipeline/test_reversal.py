@@ -1,11 +1,13 @@
 """A tube that curls up and then back (an inflate–deflate cycle): at the
 reversal the constant-velocity prediction overshoots, and a fit that passes the
 checks with residuals many times the video's own is searched again
-(``track.RESIDUAL_JUMP``)."""
+(``track.RESIDUAL_JUMP``). A tube that deflates from a tight curl: the frames
+the tracker could not start on are tracked backwards, with the motion."""
 
 import json
 
 import numpy as np
+import pandas as pd
 
 import pipeline.track as track
 from pipeline.accuracy import score_folder
@@ -40,3 +42,26 @@ def test_frames_after_a_reversal_are_found_again(tmp_path, monkeypatch):
     track_video(folder / "frames", tmp_path / "off", um_per_px=scale)
     off, _ = score_folder(folder, tmp_path / "off")
     assert off.angle_error_deg.abs().to_numpy()[13:].max() > 20.0
+
+
+def test_frames_tracked_backwards_follow_the_motion(tmp_path, monkeypatch):
+    # deflating from a 270° curl: the tracker cannot start on the first, tight
+    # curls, starts later and tracks the frames before backwards, from the
+    # later shapes and their motion carried on backwards
+    scene = Scene.from_dict({**_SCENE, "seed": 4, "base_angle_deg": 183.0,
+                             "pressures_mpa": list(np.linspace(0.15, 0.0, 12))})
+    folder = render_scene(scene, tmp_path / "scene", fmt="png")
+    scale = json.loads((folder / "scene.json").read_text())["layout"]["um_per_px"]
+    track_video(folder / "frames", tmp_path / "out", um_per_px=scale)
+    errors, _ = score_folder(folder, tmp_path / "out")
+    stages = pd.read_json(tmp_path / "out" / "run.json", typ="series")["stages"]
+    assert stages.get("backward", 0) >= 3
+    assert errors.angle_error_deg.abs().max() < 10.0
+
+    # from the later shape alone, a tight curl is left too far behind
+    plain = track._from_later
+    monkeypatch.setattr(track, "_from_later",
+                        lambda *args: plain(*args[:5], None))
+    track_video(folder / "frames", tmp_path / "off", um_per_px=scale)
+    off, _ = score_folder(folder, tmp_path / "off")
+    assert off.angle_error_deg.abs().max() > 15.0
