@@ -990,21 +990,20 @@ def _refitted(pending, base: complex | None, turn: float, look: TubeLook | None,
                    if _good(r, look) else result)
     # a frame lost before a later one was measured (a first frame the tracker
     # could not start on, that the next one started on) is tracked backwards
-    # from the nearest measured frame after it
+    # from the nearest measured frame after it (and the motion from the one
+    # after that)
     later = after = None
     for i in range(len(out) - 1, -1, -1):
-        if out[i].ok:
-            later, after = out[i].tracked, later
-        elif later is not None and look is not None:
+        if not out[i].ok and later is not None and look is not None:
             crossing = self_contact(later, look.mean_half_width)
             r = _from_later(pending[i][1], later, look, settings, crossing, after)
             if r is not None:
                 out[i] = FrameTrack(out[i].frame, "ok", _reported(r), "backward", r.residual_px,
                                     r.valid_fraction, fit=r.curve, crossing=crossing,
                                     last_section=r.last_section)
-                later, after = r.curve, later
-            else:
-                after = None    # no motion to carry on across a frame not found
+        # a motion only between consecutive frames
+        after = later if out[i].ok and i + 1 < len(out) and out[i + 1].ok else None
+        later = out[i].tracked if out[i].ok else later
     return out
 
 
