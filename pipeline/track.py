@@ -1021,7 +1021,8 @@ def _from_later(image: np.ndarray, later: Curve, look: TubeLook, settings: Track
         # alone leaves too far behind on a tight curl)
         starts.append(_predict([after, later]))
     fits = [refine(image, start, look, window=1.5 * look.mean_half_width, iterations=10,
-                   avoid_contact=crossing or self_contact(start, look.mean_half_width),
+                   avoid_contact=crossing or (start is not later
+                                              and self_contact(start, look.mean_half_width)),
                    tol_px=settings.tol_px) for start in starts]
     fits = [r for r in fits if _accepted(r, look, later.length)]
     if fits:
