@@ -423,6 +423,23 @@ def longest_path(skel: np.ndarray, *, border_bonus: float = 0.0, margin: float =
     return np.stack([rr[path], cc[path]], axis=1)
 
 
+#: Largest turn (deg) between the tube's start and the straight run back to a
+#: given base that lies beyond it, for that run to be bridged (a missed stretch
+#: curving no more than this); and its largest length, over the tube found.
+BRIDGE_MAX_TURN_DEG = 45.0
+BRIDGE_MAX_SHARE = 0.5
+
+
+def _bridges_to(gap: complex, lead: complex, length_px: float) -> bool:
+    """Whether a given base ``gap`` px behind the start of the tube found
+    (``gap`` = start − base; ``lead`` the tube's direction from its start)
+    carries the tube on back: along its line, and nearer than half its length."""
+    if abs(lead) == 0:
+        return False
+    turn = abs(np.degrees(np.angle(gap / lead)))
+    return turn <= BRIDGE_MAX_TURN_DEG and abs(gap) <= BRIDGE_MAX_SHARE * length_px
+
+
 def _touches_border(point_rc, shape, margin: float) -> bool:
     r, c = point_rc
     return r < margin or c < margin or r > shape[0] - 1 - margin or c > shape[1] - 1 - margin
@@ -620,6 +637,17 @@ def _detect_in(mask: np.ndarray, f: int, base_hint, base_end, *,
         # a tube that starts at the given base with no pipette in view: its
         # skeleton stops about a half-width short of that end, as of the tip's
         hint = complex(from_image(float(base_hint[0]), float(base_hint[1])))
-        if 1.0 < abs(pts[0] - hint) <= 2.0 * half_width_px:
+        gap = pts[0] - hint
+        if 1.0 < abs(gap) <= 2.0 * half_width_px:
             pts = np.concatenate([[hint], pts])
+        elif abs(gap) > 1.0 and _bridges_to(gap, lead, float(np.abs(np.diff(pts)).sum())):
+            # farther, but on the tube's line: a stretch of the tube the mask
+            # missed (a relief fades where the tube runs along its shear; a
+            # faint base section). The given base stands: the tube is carried
+            # straight back to it, for the fit to bridge
+            n = int(np.ceil(abs(gap)))
+            pts = np.concatenate([hint + gap * np.arange(n) / n, pts])
+            base_angle = float(np.angle(gap))
+            source = (f"{source}; the tube's first {abs(gap):.0f} px did not stand out, "
+                      "bridged straight to it")
     return Detection(pts, complex(pts[0]), base_angle, half_width_px, source)

@@ -297,8 +297,9 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
         # a video's header count: a truncated file decodes fewer frames, silently
         notes.append(f"the video ended after {len(results)} of the {total} frames its header "
                      "announces (a truncated file, or a header that counts wrong)")
-    base_source = "given (--base)" if base_hint else next(
-        (r.base_source for r in results if r.base_source), "not found")
+    # (that of a start that was measured, where one was)
+    sources = [r.base_source for r in sorted(results, key=lambda r: not r.ok) if r.base_source]
+    base_source = sources[0] if sources else "given (--base)" if base_hint else "not found"
     n_ok = int(sum(r.ok for r in results))
     run = TrackRun(out_dir, len(results), n_ok, scale, scale_source,
                    base_source, dict(stages), runtime,

@@ -233,3 +233,42 @@ def test_each_end_is_judged_along_its_stretch_however_the_path_is_sampled():
     assert b.first == pytest.approx(a.first, rel=0.02)
     assert b.last == pytest.approx(a.last, rel=0.02)
     assert a.last > 2.0 * a.first
+
+
+def _faded_start(fade_px):
+    """A dark tube whose first ``fade_px`` do not show (a relief fades where the
+    tube runs along its shear; a faint base section), and its true base."""
+    from tests.pipeline.synthetic import tube_image
+
+    base, angle, length = 120 - 300j, 0.2, 380.0
+    kw = dict(shape=(400, 640), base=base, angle=angle, length=length, kappa=1 / 400,
+              half_width=10.0, noise=0.01)
+    img = tube_image(**kw)
+    plain = tube_image(**kw, contrast=0.0, seed=1)
+    rr, cc = np.mgrid[0:400, 0:640]
+    faded = (((cc - 1j * rr) - base) * np.exp(-1j * angle)).real < fade_px
+    img[faded] = plain[faded]
+    return img, base, angle, length
+
+
+def test_a_base_given_before_where_the_tube_shows_is_bridged_to():
+    # the given base stands: the tube is carried back to it, not started 50 px
+    # on where it first shows (there its tangent has turned, and the length is short)
+    from pipeline.track import initialise
+
+    img, base, angle, length = _faded_start(50.0)
+    det = detect(img, base_hint=(base.real, -base.imag))
+    assert abs(det.base - base) < 1.0
+    assert "bridged" in det.base_source
+    r, _, source = initialise(img, base_hint=(base.real, -base.imag))
+    assert abs(r.curve.base - base) < 1.0
+    assert abs(np.degrees(r.curve.base_angle - angle)) < 1.0
+    assert abs(r.curve.length / length - 1) < 0.01
+
+
+def test_a_base_given_off_the_tubes_line_is_not_bridged_to():
+    img, base, angle, _ = _faded_start(50.0)
+    aside = base + 1j * np.exp(1j * angle) * 80.0   # 80 px beside the tube's start
+    det = detect(img, base_hint=(aside.real, -aside.imag))
+    assert abs(det.base - aside) > 40.0
+    assert "bridged" not in det.base_source
