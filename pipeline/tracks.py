@@ -23,6 +23,7 @@ from .binning import Binning
 from .centreline import Curve, resample, tip_point
 from .field import Field, field_stop
 from .margins import Margins, blank_margins
+from .pipette import MIN_WIDTHS, drop_holder, static_stretch
 from .refine import END_CLEAR_HW
 from .track import (
     EDGE_SCALES,
@@ -30,6 +31,7 @@ from .track import (
     SNR_TARGET,
     FrameTrack,
     TrackSettings,
+    as_float,
     hold_section_ratio,
     track_frames,
 )
@@ -251,6 +253,13 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
                                     first_detection=first_det, progress=tick,
                                     settings=settings, joints=joints))
         results, still_note = _stood_still(frames, results, first_det)
+        # the first frame, for the holder test: read again only where a long
+        # stretch from the base stood still while the rest bent
+        holder_image = None
+        if first_det is not None and results and results[0].ok:
+            least = MIN_WIDTHS * 2 * first_det.half_width
+            if static_stretch(results, first_det.half_width, least) >= least:
+                holder_image = as_float(next(iter(frames)))
     if not results:
         raise ValueError(f"{source}: no frames to track")
     rows, cols = kept
@@ -261,6 +270,8 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
     results, view_note = cut_by_border(
         results, (rows // binning.factor, cols // binning.factor), disc)
     results, ratio_note = hold_section_ratio(results)
+    results, holder_note = drop_holder(results, holder_image,
+                                       first_det.half_width if first_det is not None else 0.0)
     if binning:
         results = [binning.track_back(r) for r in results]
     if margins:
@@ -285,6 +296,8 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
         notes.append(view_note)
     if still_note:
         notes.append(still_note)
+    if holder_note:
+        notes.append(holder_note)
     if motion_note:
         notes.append(motion_note)
     if margins:
@@ -300,6 +313,9 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
     # (that of a start that was measured, where one was)
     sources = [r.base_source for r in sorted(results, key=lambda r: not r.ok) if r.base_source]
     base_source = sources[0] if sources else "given (--base)" if base_hint else "not found"
+    if holder_note:
+        base_source = ("where the tube leaves a holder that stood still while the tube bent "
+                       f"(first found as: {base_source})")
     n_ok = int(sum(r.ok for r in results))
     run = TrackRun(out_dir, len(results), n_ok, scale, scale_source,
                    base_source, dict(stages), runtime,

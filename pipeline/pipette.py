@@ -1,0 +1,212 @@
+"""A holder taken for the tube's base stretch, told apart over the video.
+
+One frame cannot always tell a pipette from the tube it holds: a glass
+capillary shows as two dark lines about as far apart as the tube's edges, a
+wider one may show the tube inside it, a dark band may be no wider than the
+tube. The detector then runs the tube on into the holder, to the border, and
+every frame's base, length and centreline carry the holder with them (the bend
+angle does not: the tube leaves the holder along its axis).
+
+The video tells. The tube bends; its holder does not move. So when the
+stretch from the tracked base over which every well-bent frame lies on the
+first frame's centreline is long (several tube widths), it is looked at in the
+first frame: if the profiles across it change abruptly at one place (glass to
+tube, band to tube), and by far more than the profiles' own noise, that place
+is where the tube leaves the holder, and every frame's centreline is cut there.
+
+A tube's own base, free, moves off the first frame's line within a few
+widths of its base once it bends (by κs²/2: 1 px within 10-25 px of the base
+at 90-360 deg); a section joint there moves with it. Neither is cut.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+from scipy.ndimage import map_coordinates
+
+from .centreline import Curve, basis_of, evaluate, make_basis, resample
+from .track import FrameTrack
+
+#: Frames bent at least this much (deg) tell the static stretch.
+MIN_BEND_DEG = 45.0
+#: A point stays on the first frame's centreline within this (px, at least;
+#: and a fifth of the tube's half-width).
+STILL_PX = 1.0
+#: The holder's stretch must be at least this many tube widths long.
+MIN_WIDTHS = 2.0
+#: The tube beyond it must keep at least this share of the length tracked.
+MIN_TUBE_SHARE = 0.4
+#: How much better two profiles (holder, tube) fit the stretch than one, at
+#: least: the mean squared profile change over the profiles' own scatter about
+#: their stretch's mean (a straight tube's profiles change only by noise: the
+#: ratio about 1; glass to tube: hundreds).
+MIN_CHANGE = 7.0
+
+
+def static_stretch(results: list[FrameTrack], half_width: float, at_least: float = 0.0
+                   ) -> float:
+    """Arc length from the tracked base (px) over which every ok frame bent by at
+    least :data:`MIN_BEND_DEG` lies on the first ok frame's centreline; 0 when
+    no frame bent that far. Looked at only until it falls below ``at_least``."""
+    from scipy.spatial import cKDTree
+
+    ok = [r for r in results if r.ok]
+    bent = [r for r in ok[1:] if abs(np.degrees(r.bend_angle_rad)) >= MIN_BEND_DEG]
+    if not bent:
+        return 0.0
+    _, ref = resample(ok[0].curve, 0.5)
+    tree = cKDTree(np.c_[ref.real, ref.imag])
+    tol = max(STILL_PX, 0.2 * half_width)
+    still = np.inf
+    for r in bent:
+        s, z = resample(r.curve, 1.0)
+        near = s <= min(still, s[-1])
+        dist, _ = tree.query(np.c_[z[near].real, z[near].imag])
+        off = dist > tol
+        still = min(still, float(s[near][np.argmax(off)]) if off.any() else float(s[near][-1]))
+        if still < at_least:
+            break
+    return still
+
+
+def _sampled(curve: Curve, spacing_px: float = 1.0):
+    """Arc lengths, points, tangent angles and unit normals ``spacing_px`` apart."""
+    n = int(np.ceil(curve.length / spacing_px)) + 1
+    basis = basis_of(curve, max(n, 2))
+    smp = evaluate(curve, basis)
+    return basis.u * curve.length, smp.z, smp.phi, smp.normal
+
+
+def profile_change(image: np.ndarray, curve: Curve, half_width: float, upto: float
+                   ) -> tuple[float, float]:
+    """Where along ``curve``'s first ``upto`` px the profiles across it change
+    most abruptly, and by how much.
+
+    Parameters
+    ----------
+    image : (rows, cols) float ndarray
+        The frame ``curve`` was measured on.
+    curve : Curve
+        px (y up).
+    half_width : float
+        The tube's, px: the profiles span three on each side.
+    upto : float
+        Arc length searched, px; the change is at least :data:`MIN_WIDTHS`
+        tube widths from the base.
+
+    Returns
+    -------
+    s : float
+        Arc length of the best single change (a piecewise-constant fit of the
+        profiles), px; 0 when the stretch is too short.
+    change : float
+        The mean squared difference of the two stretches' mean profiles over
+        the profiles' scatter about those means (per sample): about 1 where
+        nothing changes.
+    """
+    s, z, _, normal = _sampled(curve)
+    n = min(int(np.floor(upto)) + 1, s.size)
+    k_min = int(np.ceil(MIN_WIDTHS * 2 * half_width))
+    if n - k_min < 3:
+        return 0.0, 0.0
+    off = np.arange(-3.0 * half_width, 3.0 * half_width + 0.25, 0.5)
+    pts = z[:n, None] + normal[:n, None] * off[None, :]
+    prof = map_coordinates(image, [-pts.imag, pts.real], order=1, mode="nearest")
+    c1 = np.cumsum(prof, axis=0)
+    c2 = np.cumsum(prof**2, axis=0)
+    k = np.arange(k_min, n - 2)
+    left = (c2[k - 1] - c1[k - 1] ** 2 / k[:, None]).sum(axis=1)
+    right = ((c2[-1] - c2[k - 1]) - (c1[-1] - c1[k - 1]) ** 2 / (n - k)[:, None]).sum(axis=1)
+    at = int(k[np.argmin(left + right)])
+    sse = float(np.min(left + right))
+    diff = prof[:at].mean(axis=0) - prof[at:n].mean(axis=0)
+    scatter = sse / max(prof.size - 2 * prof.shape[1], 1)
+    return float(s[at]), float(np.mean(diff**2) / max(scatter, 1e-12))
+
+
+def cut_base(curve: Curve, s: float, base_angle: float | None = None) -> Curve:
+    """``curve`` from arc length ``s`` (px) on, with the same spline size and
+    the joints beyond ``s``.
+
+    Its base tangent is ``base_angle`` (rad; default: the curve's tangent at
+    ``s``): a tube leaves its holder along the holder's axis, where a fit
+    through both, whose curvature cannot step, has already turned a little.
+    """
+    arc, z, phi, _ = _sampled(curve, 0.25)
+    length = curve.length - s
+    joints = tuple(float((j * curve.length - s) / length) for j in curve.joints
+                   if j * curve.length - s > 0.02 * length)
+    basis = make_basis(curve.coef.size, basis_of(curve).n_grid, joints)
+    if base_angle is None:
+        base_angle = float(np.interp(s, arc, phi))
+    turn = np.interp(s + basis.u * length, arc, phi) - base_angle
+    coef, *_ = np.linalg.lstsq(basis.values, turn, rcond=None)
+    coef[-1] = turn[-1]     # the tip's angle exactly (only the last function reaches u = 1)
+    base = complex(np.interp(s, arc, z.real), np.interp(s, arc, z.imag))
+    return Curve(base, float(base_angle), length, coef, joints)
+
+
+def axis_angle(curve: Curve, s: float) -> float:
+    """The mean tangent angle over the middle half of ``curve``'s first ``s`` px, rad."""
+    arc, _, phi, _ = _sampled(curve, 0.5)
+    return float(np.mean(phi[(arc >= 0.25 * s) & (arc <= 0.75 * s)]))
+
+
+def drop_holder(results: list[FrameTrack], image: np.ndarray | None, half_width: float
+                ) -> tuple[list[FrameTrack], str | None]:
+    """Cut a holder taken for the tube off every frame's centreline.
+
+    Parameters
+    ----------
+    results : list of FrameTrack
+        The tracked frames, px of ``image``.
+    image : (rows, cols) float ndarray or None
+        The first frame (None: not read, the test is left out).
+    half_width : float
+        The tube's half-width, px.
+
+    Returns
+    -------
+    results : list of FrameTrack
+        The same frames, their curves (and fits) cut where the tube leaves the
+        holder, or unchanged.
+    note : str or None
+        A line for the run's notes when a holder was cut off.
+    """
+    ok = [r for r in results if r.ok]
+    if image is None or not ok or not results[0].ok:
+        return results, None
+    still = static_stretch(results, half_width, MIN_WIDTHS * 2 * half_width)
+    first = results[0].curve
+    if still < MIN_WIDTHS * 2 * half_width:
+        return results, None
+    s, change = profile_change(image, first, half_width, still + 2 * half_width)
+    if change < MIN_CHANGE or s <= 0 or first.length - s < MIN_TUBE_SHARE * first.length:
+        return results, None
+    out = []
+    for r in results:
+        if not r.ok:
+            out.append(r)
+            continue
+        # each frame cut where its own centreline passes the first frame's holder end
+        at = _nearest_arc(r.curve, _point_at(first, s))
+        axis = axis_angle(r.curve, at)
+        out.append(replace(r, curve=cut_base(r.curve, at, axis),
+                           fit=cut_base(r.fit, at * r.fit.length / r.curve.length, axis)
+                           if r.fit is not None else None))
+    return out, (f"the tracked structure's first {s:.0f} px stood still on every frame while "
+                 f"the rest bent, and its profile changed there by {change:.0f}x its noise: "
+                 "a holder (pipette) taken for the tube, cut off every frame")
+
+
+def _point_at(curve: Curve, s: float) -> complex:
+    arc, z, _, _ = _sampled(curve, 0.25)
+    return complex(np.interp(s, arc, z.real), np.interp(s, arc, z.imag))
+
+
+def _nearest_arc(curve: Curve, point: complex) -> float:
+    arc, z, _, _ = _sampled(curve, 0.25)
+    return float(arc[np.argmin(np.abs(z - point))])
+

@@ -1,0 +1,108 @@
+"""A holder taken for the tube's base stretch is cut off, told by the video."""
+
+import json
+
+import cv2
+import numpy as np
+import pandas as pd
+import pytest
+
+from pipeline import pipette
+from pipeline.centreline import Curve, resample, tip_point
+from pipeline.tracks import track_video
+from tests.pipeline.synthetic import tube_image
+
+BASE, ANGLE, LENGTH, HW = 420 - 240j, np.pi, 300.0, 8.0
+#: Bend of the last frame, rad (clockwise)
+TURN = -3.5
+
+
+def _video(tmp_path, holder: float | None, n: int = 8, base=BASE):
+    """A dark tube bending clockwise from straight to 200 deg, held (``holder``:
+    that many of its half-widths wide, half as dark, running to the border) or
+    starting at the border itself; frames as PNGs, and the true bends (deg)."""
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    bends = []
+    for k in range(n):
+        kappa = TURN * k / (n - 1) / LENGTH
+        img = tube_image((480, 640), base, ANGLE, LENGTH, kappa + 1e-12, HW, noise=0.01,
+                         seed=k, pipette_half_width=None if holder is None else holder * HW)
+        cv2.imwrite(str(folder / f"f{k:02d}.png"), (img * 255).round().astype(np.uint8))
+        bends.append(np.degrees(kappa * LENGTH))
+    return folder, np.array(bends)
+
+
+def test_a_holder_as_wide_as_the_tube_is_cut_off_every_frame(tmp_path, monkeypatch):
+    # a band as wide as the tube, half as dark, running from the base to the
+    # border: no width step, so the detector runs the tube on into it
+    folder, bends = _video(tmp_path, holder=1.0)
+    track_video(folder, tmp_path / "out", um_per_px=1.0)
+    t = pd.read_csv(tmp_path / "out" / "tracks.csv")
+    assert (t.status == "ok").all()
+    assert np.hypot(t.base_x_um - BASE.real, t.base_y_um - BASE.imag).max() < 1.5
+    assert np.abs(t.length_um / LENGTH - 1).max() < 0.01
+    assert np.abs(t.bend_angle_deg - bends).max() < 0.5
+    run = json.loads((tmp_path / "out" / "run.json").read_text())
+    assert "holder" in run["base_source"]
+    assert any("holder (pipette) taken for the tube" in n for n in run["left_out_and_why"])
+    # without the test the tube runs on to the border, 218 px too long
+    monkeypatch.setattr(pipette, "MIN_CHANGE", np.inf)
+    track_video(folder, tmp_path / "kept", um_per_px=1.0)
+    kept = pd.read_csv(tmp_path / "kept" / "tracks.csv")
+    assert kept.length_um.min() > LENGTH + 150
+
+
+def test_a_tube_starting_at_the_border_is_not_cut(tmp_path):
+    # no holder: the tube itself runs from the border, and its base stretch
+    # moves off the first frame's line once it bends
+    base = 639 - 240j
+    folder, bends = _video(tmp_path, holder=None, base=base)
+    track_video(folder, tmp_path / "out", um_per_px=1.0)
+    t = pd.read_csv(tmp_path / "out" / "tracks.csv")
+    ok = t[t.status == "ok"]
+    assert len(ok) >= 6 and abs(ok.bend_angle_deg.iloc[-1]) > 150
+    assert np.abs(ok.length_um / LENGTH - 1).max() < 0.01
+    run = json.loads((tmp_path / "out" / "run.json").read_text())
+    assert "holder" not in run["base_source"]
+
+
+def _arc(kappa=1 / 150):
+    """A circular arc as a Curve (its spline fitted to the exact tangent angle)."""
+    from pipeline.centreline import basis_of, make_basis
+
+    n = 24
+    basis = make_basis(n, basis_of(Curve(0j, 0.3, LENGTH, np.zeros(n))).n_grid)
+    coef, *_ = np.linalg.lstsq(basis.values, kappa * basis.u * LENGTH, rcond=None)
+    return Curve(10 - 5j, 0.3, LENGTH, coef)
+
+
+def test_a_cut_curve_keeps_the_shape_beyond_the_cut():
+    curve = _arc()
+    s_cut = 80.0
+    cut = pipette.cut_base(curve, s_cut)
+    arc, z = resample(curve, 0.25)
+    assert cut.length == pytest.approx(LENGTH - s_cut)
+    assert abs(cut.base - np.interp(s_cut, arc, z.real) - 1j * np.interp(s_cut, arc, z.imag)) \
+        < 1e-3
+    assert cut.base_angle == pytest.approx(0.3 + s_cut / 150, abs=1e-4)
+    assert cut.coef[-1] == pytest.approx((LENGTH - s_cut) / 150, abs=1e-4)
+    assert abs(tip_point(cut) - tip_point(curve)) < 0.01
+    # given the holder's axis as the base tangent, the tip's angle is measured from it
+    held = pipette.cut_base(curve, s_cut, base_angle=0.3)
+    assert held.base_angle == 0.3
+    assert held.coef[-1] == pytest.approx(LENGTH / 150, abs=1e-4)
+
+
+@pytest.mark.parametrize("holder, changes", [(None, False), (1.0, True), (0.6, True)])
+def test_the_profiles_change_where_the_holder_ends(holder, changes):
+    # a straight structure: tube from BASE leftwards, and (or not) a holder to its right
+    # (no holder: the tube alone, from its base)
+    img = tube_image((480, 640), BASE, ANGLE, LENGTH, 1e-12, HW, noise=0.01,
+                     pipette_half_width=None if holder is None else holder * HW)
+    start = BASE if holder is None else 639 - 240j
+    structure = Curve(start, ANGLE, LENGTH + abs(start - BASE), np.zeros(8))
+    s, change = pipette.profile_change(img, structure, HW, 280.0)
+    assert (change >= pipette.MIN_CHANGE) == changes
+    if changes:
+        assert s == pytest.approx(abs(start - BASE), abs=2.0)
