@@ -10,13 +10,15 @@ angle does not: the tube leaves the holder along its axis).
 The video tells. The tube bends; its holder does not move. So when the
 stretch from the tracked base over which every well-bent frame lies on the
 first frame's centreline is long (several tube widths), it is looked at in the
-first frame: if the profiles across it change abruptly at one place (glass to
-tube, band to tube), and by far more than the profiles' own noise, that place
-is where the tube leaves the holder, and every frame's centreline is cut there.
+first frame: if the profiles across it step at one place (glass to tube, band
+to tube) by far more than their own scatter, and a steady trend along it (a
+shading, a taper) does not explain them as well, that place is where the tube
+leaves the holder, and every frame's centreline is cut there.
 
-A tube's own base, free, moves off the first frame's line within a few
-widths of its base once it bends (by κs²/2: 1 px within 10-25 px of the base
-at 90-360 deg); a section joint there moves with it. Neither is cut.
+Not run where the base is known: given (``--base``), or found at a narrower
+pipette's width step. A tube's own base stretch, free, moves off the first
+frame's line once it bends (by κs²/2); on a thin or little-bent tube it may
+stay within a pixel for a few widths, which is why the profiles must step too.
 """
 
 from __future__ import annotations
@@ -38,11 +40,18 @@ STILL_PX = 1.0
 MIN_WIDTHS = 2.0
 #: The tube beyond it must keep at least this share of the length tracked.
 MIN_TUBE_SHARE = 0.4
-#: How much better two profiles (holder, tube) fit the stretch than one, at
-#: least: the mean squared profile change over the profiles' own scatter about
-#: their stretch's mean (a straight tube's profiles change only by noise: the
-#: ratio about 1; glass to tube: hundreds).
+#: The step in the profiles, at least: the mean squared difference of the two
+#: stretches' mean profiles over the profiles' scatter about those means (a
+#: tube's profiles along a stretch of one look: under 0.2; glass or a band to
+#: tube: 8-100 and more).
 MIN_CHANGE = 7.0
+#: ... and the step must fit the profiles this much better (residual sum of
+#: squares) than a straight trend along the stretch does: a shading or a taper
+#: changes the profiles too, but steadily (a linear shading: 0.6; holders
+#: measured 1.3-7).
+STEP_OVER_TREND = 1.2
+#: Status of a frame whose centreline does not pass where the holder ends.
+OFF_HOLDER = "lost: the tube's start not found at the holder's end"
 
 
 def static_stretch(results: list[FrameTrack], half_width: float, at_least: float = 0.0
@@ -103,8 +112,9 @@ def profile_change(image: np.ndarray, curve: Curve, half_width: float, upto: flo
         profiles), px; 0 when the stretch is too short.
     change : float
         The mean squared difference of the two stretches' mean profiles over
-        the profiles' scatter about those means (per sample): about 1 where
-        nothing changes.
+        the profiles' scatter about those means (per sample): near 0 where
+        nothing changes; 0 where a straight trend along the stretch fits the
+        profiles nearly as well (:data:`STEP_OVER_TREND`).
     """
     s, z, _, normal = _sampled(curve)
     n = min(int(np.floor(upto)) + 1, s.size)
@@ -121,6 +131,12 @@ def profile_change(image: np.ndarray, curve: Curve, half_width: float, upto: flo
     right = ((c2[-1] - c2[k - 1]) - (c1[-1] - c1[k - 1]) ** 2 / (n - k)[:, None]).sum(axis=1)
     at = int(k[np.argmin(left + right)])
     sse = float(np.min(left + right))
+    # a straight trend along the stretch, per sample across it
+    design = np.c_[np.ones(n), s[:n]]
+    trend, *_ = np.linalg.lstsq(design, prof, rcond=None)
+    sse_trend = float(((prof - design @ trend) ** 2).sum())
+    if sse_trend < STEP_OVER_TREND * sse:
+        return float(s[at]), 0.0
     diff = prof[:at].mean(axis=0) - prof[at:n].mean(axis=0)
     scatter = sse / max(prof.size - 2 * prof.shape[1], 1)
     return float(s[at]), float(np.mean(diff**2) / max(scatter, 1e-12))
@@ -128,7 +144,7 @@ def profile_change(image: np.ndarray, curve: Curve, half_width: float, upto: flo
 
 def cut_base(curve: Curve, s: float, base_angle: float | None = None) -> Curve:
     """``curve`` from arc length ``s`` (px) on, with the same spline size and
-    the joints beyond ``s``.
+    the joints beyond ``s`` (but those within 2 % of the new length of it).
 
     Its base tangent is ``base_angle`` (rad; default: the curve's tangent at
     ``s``): a tube leaves its holder along the holder's axis, where a fit
@@ -154,8 +170,8 @@ def axis_angle(curve: Curve, s: float) -> float:
     return float(np.mean(phi[(arc >= 0.25 * s) & (arc <= 0.75 * s)]))
 
 
-def drop_holder(results: list[FrameTrack], image: np.ndarray | None, half_width: float
-                ) -> tuple[list[FrameTrack], str | None]:
+def drop_holder(results: list[FrameTrack], image: np.ndarray | None, half_width: float,
+                px: float = 1.0) -> tuple[list[FrameTrack], str | None]:
     """Cut a holder taken for the tube off every frame's centreline.
 
     Parameters
@@ -166,39 +182,50 @@ def drop_holder(results: list[FrameTrack], image: np.ndarray | None, half_width:
         The first frame (None: not read, the test is left out).
     half_width : float
         The tube's half-width, px.
+    px : float
+        Full-frame pixels per pixel of ``image`` (binning), for the note.
 
     Returns
     -------
     results : list of FrameTrack
         The same frames, their curves (and fits) cut where the tube leaves the
-        holder, or unchanged.
+        holder, their base tangent the holder's axis; a frame whose centreline
+        does not pass the holder's end is marked :data:`OFF_HOLDER`.
     note : str or None
         A line for the run's notes when a holder was cut off.
     """
-    ok = [r for r in results if r.ok]
-    if image is None or not ok or not results[0].ok:
+    if image is None or not results or not results[0].ok:
         return results, None
-    still = static_stretch(results, half_width, MIN_WIDTHS * 2 * half_width)
+    least = MIN_WIDTHS * 2 * half_width
+    still = static_stretch(results, half_width, least)
     first = results[0].curve
-    if still < MIN_WIDTHS * 2 * half_width:
+    if still < least:
         return results, None
     s, change = profile_change(image, first, half_width, still + 2 * half_width)
-    if change < MIN_CHANGE or s <= 0 or first.length - s < MIN_TUBE_SHARE * first.length:
+    if change < MIN_CHANGE or s < least or first.length - s < MIN_TUBE_SHARE * first.length:
         return results, None
+    end, axis = _point_at(first, s), axis_angle(first, s)
+    tol = max(2.0, 0.5 * half_width)
     out = []
     for r in results:
         if not r.ok:
             out.append(r)
             continue
-        # each frame cut where its own centreline passes the first frame's holder end
-        at = _nearest_arc(r.curve, _point_at(first, s))
-        axis = axis_angle(r.curve, at)
-        out.append(replace(r, curve=cut_base(r.curve, at, axis),
-                           fit=cut_base(r.fit, at * r.fit.length / r.curve.length, axis)
-                           if r.fit is not None else None))
-    return out, (f"the tracked structure's first {s:.0f} px stood still on every frame while "
-                 f"the rest bent, and its profile changed there by {change:.0f}x its noise: "
-                 "a holder (pipette) taken for the tube, cut off every frame")
+        at = _nearest_arc(r.curve, end)
+        if abs(_point_at(r.curve, at) - end) > tol or r.curve.length - at < MIN_TUBE_SHARE * (
+                first.length - s):
+            out.append(replace(r, status=OFF_HOLDER, curve=None, fit=None, last_section=None))
+            continue
+        # (the fit shares the curve's base: cut at the same arc length; the
+        # last section's record describes the uncut spline, and goes)
+        out.append(replace(r, curve=cut_base(r.curve, at, axis) if at >= 1.0 else r.curve,
+                           fit=(cut_base(r.fit, min(at, 0.5 * r.fit.length), axis)
+                                if r.fit is not None and at >= 1.0 else r.fit),
+                           last_section=None))
+    return out, (f"the tracked structure's first {s * px:.0f} px stood still on every frame "
+                 f"while the rest bent, and its profile stepped there by {change:.0f}x its "
+                 "scatter: a holder (pipette) taken for the tube, cut off every frame (its "
+                 "axis the base tangent)")
 
 
 def _point_at(curve: Curve, s: float) -> complex:

@@ -472,6 +472,8 @@ def _split_point(width: np.ndarray, trim: int = 0) -> tuple[int, float]:
     return best, float(after / max(before, 1e-9))
 
 
+#: The base found where a narrower pipette's width steps up to the tube's.
+PIPETTE_STEP = "pipette width step"
 #: Base sources that a single frame cannot back up (see :mod:`pipeline.motion`).
 AMBIGUOUS_BASE = "skeleton end nearest the border"
 #: The base found where the structure meets the image border, no holder seen.
@@ -602,7 +604,7 @@ def _detect_in(mask: np.ndarray, f: int, base_hint, base_end, *,
         split = int(np.argmin(np.hypot(*(path_rc - hint).T)))
         source = "given (--base)"
     elif ratio > 1.15 and split > min_pipette and _touches_border(path_rc[0], shape, margin):
-        source = "pipette width step"
+        source = PIPETTE_STEP
     elif (ratio < 1 / HOLDER_RATIO and split > min_pipette
           and _touches_border(path_rc[0], shape, margin)):
         source = "holder width step (a holder wider than the tube)"
@@ -650,4 +652,7 @@ def _detect_in(mask: np.ndarray, f: int, base_hint, base_end, *,
             base_angle = float(np.angle(gap))
             source = (f"{source}; the tube's first {abs(gap):.0f} px did not stand out, "
                       "bridged straight to it")
+        elif abs(gap) > 2.0 * half_width_px:
+            source = (f"{source}; it lies {abs(gap):.0f} px from the tube found, off its line: "
+                      "the base taken at the tube's nearest point")
     return Detection(pts, complex(pts[0]), base_angle, half_width_px, source)

@@ -25,6 +25,7 @@ from .field import Field, field_stop
 from .margins import Margins, blank_margins
 from .pipette import MIN_WIDTHS, drop_holder, static_stretch
 from .refine import END_CLEAR_HW
+from .segment import PIPETTE_STEP
 from .track import (
     EDGE_SCALES,
     JOINT_CHECK_DEG,
@@ -253,13 +254,12 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
                                     first_detection=first_det, progress=tick,
                                     settings=settings, joints=joints))
         results, still_note = _stood_still(frames, results, first_det)
-        # the first frame, for the holder test: read again only where a long
-        # stretch from the base stood still while the rest bent
-        holder_image = None
-        if first_det is not None and results and results[0].ok:
-            least = MIN_WIDTHS * 2 * first_det.half_width
-            if static_stretch(results, first_det.half_width, least) >= least:
-                holder_image = as_float(next(iter(frames)))
+        results, holder_note = _without_holder(frames, results, first_det, base_hint,
+                                               binning.factor)
+        if holder_note and joints is not None:
+            holder_note += (f"; sample {sample.name}'s section joints were placed on the length "
+                            "with the holder: give --base X,Y where the tube leaves it to place "
+                            "them on the tube")
     if not results:
         raise ValueError(f"{source}: no frames to track")
     rows, cols = kept
@@ -270,8 +270,6 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
     results, view_note = cut_by_border(
         results, (rows // binning.factor, cols // binning.factor), disc)
     results, ratio_note = hold_section_ratio(results)
-    results, holder_note = drop_holder(results, holder_image,
-                                       first_det.half_width if first_det is not None else 0.0)
     if binning:
         results = [binning.track_back(r) for r in results]
     if margins:
@@ -398,6 +396,21 @@ def _stood_still(frames, results, det):
     return marked, (f"the structure tracked stood still over the video, while {share:.1f}x "
                     "its area moved elsewhere (another structure bent there: the tube?): "
                     "its frames are not measured")
+
+
+def _without_holder(frames, results, det, base_hint, px):
+    """:func:`pipeline.pipette.drop_holder`, where the base is not known: not
+    given, nor found at a narrower pipette's width step. The first frame is
+    read again only where a long stretch from the base stood still while the
+    rest of the tube bent."""
+    if (det is None or base_hint is not None or not results or not results[0].ok
+            or results[0].base_source.startswith(PIPETTE_STEP)):
+        return results, None
+    least = MIN_WIDTHS * 2 * det.half_width
+    if static_stretch(results, det.half_width, least) < least:
+        return results, None
+    out, note = drop_holder(results, as_float(next(iter(frames))), det.half_width, px)
+    return out, note
 
 
 def _static_end(reader, det):

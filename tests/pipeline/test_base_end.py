@@ -272,3 +272,4 @@ def test_a_base_given_off_the_tubes_line_is_not_bridged_to():
     det = detect(img, base_hint=(aside.real, -aside.imag))
     assert abs(det.base - aside) > 40.0
     assert "bridged" not in det.base_source
+    assert "the base taken at the tube's nearest point" in det.base_source

@@ -17,7 +17,7 @@ BASE, ANGLE, LENGTH, HW = 420 - 240j, np.pi, 300.0, 8.0
 TURN = -3.5
 
 
-def _video(tmp_path, holder: float | None, n: int = 8, base=BASE):
+def _video(tmp_path, holder: float | None, n: int = 8, base=BASE, turn=TURN, hw=HW):
     """A dark tube bending clockwise from straight to 200 deg, held (``holder``:
     that many of its half-widths wide, half as dark, running to the border) or
     starting at the border itself; frames as PNGs, and the true bends (deg)."""
@@ -25,9 +25,9 @@ def _video(tmp_path, holder: float | None, n: int = 8, base=BASE):
     folder.mkdir()
     bends = []
     for k in range(n):
-        kappa = TURN * k / (n - 1) / LENGTH
-        img = tube_image((480, 640), base, ANGLE, LENGTH, kappa + 1e-12, HW, noise=0.01,
-                         seed=k, pipette_half_width=None if holder is None else holder * HW)
+        kappa = turn * k / (n - 1) / LENGTH
+        img = tube_image((480, 640), base, ANGLE, LENGTH, kappa + 1e-12, hw, noise=0.01,
+                         seed=k, pipette_half_width=None if holder is None else holder * hw)
         cv2.imwrite(str(folder / f"f{k:02d}.png"), (img * 255).round().astype(np.uint8))
         bends.append(np.degrees(kappa * LENGTH))
     return folder, np.array(bends)
@@ -65,6 +65,45 @@ def test_a_tube_starting_at_the_border_is_not_cut(tmp_path):
     assert np.abs(ok.length_um / LENGTH - 1).max() < 0.01
     run = json.loads((tmp_path / "out" / "run.json").read_text())
     assert "holder" not in run["base_source"]
+
+
+def test_a_thin_tube_little_bent_from_the_border_is_not_cut(tmp_path, monkeypatch):
+    # its base stretch stays within a pixel of the first frame's line for over
+    # two widths (a thin tube bent 49 deg), so its profiles are looked at: one
+    # look all along, no step, not cut
+    looked = []
+
+    def spy(*args, **kwargs):
+        looked.append(change := pipette.profile_change.__wrapped__(*args, **kwargs))
+        return change
+
+    spy.__wrapped__ = pipette.profile_change
+    monkeypatch.setattr(pipette, "profile_change", spy)
+    folder, _ = _video(tmp_path, holder=None, base=639 - 240j, turn=-0.85, hw=4.0)
+    track_video(folder, tmp_path / "out", um_per_px=1.0)
+    assert looked and looked[0][1] < pipette.MIN_CHANGE
+    t = pd.read_csv(tmp_path / "out" / "tracks.csv")
+    assert (t.status == "ok").all()
+    assert np.abs(t.length_um / LENGTH - 1).max() < 0.01
+
+
+def test_a_given_base_is_not_cut(tmp_path):
+    # the user says the tube starts at the border: the band stays part of it
+    folder, _ = _video(tmp_path, holder=1.0)
+    track_video(folder, tmp_path / "out", um_per_px=1.0, base="639,240")
+    t = pd.read_csv(tmp_path / "out" / "tracks.csv")
+    assert t.length_um.min() > LENGTH + 150
+    run = json.loads((tmp_path / "out" / "run.json").read_text())
+    assert not any("holder" in n for n in run["left_out_and_why"])
+
+
+def test_a_shading_along_the_tube_is_no_step():
+    # a tube darkening steadily along its length (uneven light) changes its
+    # profiles as much as a step would, but a straight trend explains them
+    img = tube_image((480, 640), BASE, ANGLE, LENGTH, 1e-12, HW, noise=0.01)
+    img *= np.linspace(1.0, 0.85, 640)[None, ::-1].astype(np.float32)
+    _, change = pipette.profile_change(img, Curve(BASE, ANGLE, LENGTH, np.zeros(8)), HW, 280.0)
+    assert change < pipette.MIN_CHANGE
 
 
 def _arc(kappa=1 / 150):
