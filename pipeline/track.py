@@ -1015,10 +1015,14 @@ def _from_later(image: np.ndarray, later: Curve, look: TubeLook, settings: Track
     With ``after``, the frame after that, also from the two shapes' motion
     carried on backwards (the better-scored fit kept)."""
     starts = [later]
-    if after is not None and (after.coef.size, after.joints) == (later.coef.size, later.joints):
+    if after is not None:
         # backwards, the motion between the later frames carries on as it does
         # forwards (a deflating curl: 25 deg a frame, which the later shape
-        # alone leaves too far behind on a tight curl)
+        # alone leaves too far behind on a tight curl); the frame after may be
+        # written with other joints or spacing (found on it), as the history is
+        # rewritten going forwards
+        if (after.coef.size, after.joints) != (later.coef.size, later.joints):
+            after = rewritten(after, later.joints, later.coef.size)
         starts.append(_predict([after, later]))
     fits = [refine(image, start, look, window=1.5 * look.mean_half_width, iterations=10,
                    avoid_contact=crossing or (start is not later
