@@ -170,20 +170,21 @@ def axis_angle(curve: Curve, s: float) -> float:
     return float(np.mean(phi[(arc >= 0.25 * s) & (arc <= 0.75 * s)]))
 
 
-def drop_holder(results: list[FrameTrack], image: np.ndarray | None, half_width: float,
+def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
                 px: float = 1.0) -> tuple[list[FrameTrack], str | None]:
     """Cut a holder taken for the tube off every frame's centreline.
 
     Parameters
     ----------
     results : list of FrameTrack
-        The tracked frames, px of ``image``.
-    image : (rows, cols) float ndarray or None
-        The first frame (None: not read, the test is left out).
+        The tracked frames, px of the first frame.
+    first_frame : callable
+        Returns the first frame, (rows, cols) float ndarray: read only when a
+        long stretch from the base stood still while the rest of the tube bent.
     half_width : float
         The tube's half-width, px.
     px : float
-        Full-frame pixels per pixel of ``image`` (binning), for the note.
+        Full-frame pixels per pixel of the frames (binning), for the note.
 
     Returns
     -------
@@ -194,26 +195,30 @@ def drop_holder(results: list[FrameTrack], image: np.ndarray | None, half_width:
     note : str or None
         A line for the run's notes when a holder was cut off.
     """
-    if image is None or not results or not results[0].ok:
+    if not results or not results[0].ok:
         return results, None
     least = MIN_WIDTHS * 2 * half_width
     still = static_stretch(results, half_width, least)
     first = results[0].curve
     if still < least:
         return results, None
-    s, change = profile_change(image, first, half_width, still + 2 * half_width)
+    s, change = profile_change(first_frame(), first, half_width, still + 2 * half_width)
     if change < MIN_CHANGE or s < least or first.length - s < MIN_TUBE_SHARE * first.length:
         return results, None
-    end, axis = _point_at(first, s), axis_angle(first, s)
+    arc, z, _, _ = _sampled(first, 0.25)
+    end = complex(np.interp(s, arc, z.real), np.interp(s, arc, z.imag))
+    axis = axis_angle(first, s)
     tol = max(2.0, 0.5 * half_width)
     out = []
     for r in results:
         if not r.ok:
             out.append(r)
             continue
-        at = _nearest_arc(r.curve, end)
-        if abs(_point_at(r.curve, at) - end) > tol or r.curve.length - at < MIN_TUBE_SHARE * (
-                first.length - s):
+        # each frame cut where its own centreline passes the holder's end
+        arc, z, _, _ = _sampled(r.curve, 0.25)
+        k = int(np.argmin(np.abs(z - end)))
+        at = float(arc[k])
+        if abs(z[k] - end) > tol or r.curve.length - at < MIN_TUBE_SHARE * (first.length - s):
             out.append(replace(r, status=OFF_HOLDER, curve=None, fit=None, last_section=None))
             continue
         # (the fit shares the curve's base: cut at the same arc length; the
@@ -226,14 +231,3 @@ def drop_holder(results: list[FrameTrack], image: np.ndarray | None, half_width:
                  f"while the rest bent, and its profile stepped there by {change:.0f}x its "
                  "scatter: a holder (pipette) taken for the tube, cut off every frame (its "
                  "axis the base tangent)")
-
-
-def _point_at(curve: Curve, s: float) -> complex:
-    arc, z, _, _ = _sampled(curve, 0.25)
-    return complex(np.interp(s, arc, z.real), np.interp(s, arc, z.imag))
-
-
-def _nearest_arc(curve: Curve, point: complex) -> float:
-    arc, z, _, _ = _sampled(curve, 0.25)
-    return float(arc[np.argmin(np.abs(z - point))])
-

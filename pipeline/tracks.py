@@ -23,9 +23,9 @@ from .binning import Binning
 from .centreline import Curve, resample, tip_point
 from .field import Field, field_stop
 from .margins import Margins, blank_margins
-from .pipette import MIN_WIDTHS, drop_holder, static_stretch
+from .pipette import drop_holder
 from .refine import END_CLEAR_HW
-from .segment import PIPETTE_STEP
+from .segment import AMBIGUOUS_BASE, PIPETTE_STEP, detect
 from .track import (
     EDGE_SCALES,
     JOINT_CHECK_DEG,
@@ -351,9 +351,6 @@ def _moved(track: FrameTrack, offset: complex) -> FrameTrack:
 def _first_detection(frames, base_hint=None):
     """The tube found on the first of ``frames`` (None if none, or no frame),
     its base at ``base_hint`` (col, row) if given."""
-    from .segment import detect
-    from .track import as_float
-
     first = next(iter(frames), None)
     return detect(as_float(first), base_hint=base_hint) if first is not None else None
 
@@ -400,16 +397,11 @@ def _stood_still(frames, results, det):
 
 def _without_holder(frames, results, det, base_hint, px):
     """:func:`pipeline.pipette.drop_holder`, where the base is not known: not
-    given, nor found at a narrower pipette's width step. The first frame is
-    read again only where a long stretch from the base stood still while the
-    rest of the tube bent."""
+    given, nor found at a narrower pipette's width step."""
     if (det is None or base_hint is not None or not results or not results[0].ok
             or results[0].base_source.startswith(PIPETTE_STEP)):
         return results, None
-    least = MIN_WIDTHS * 2 * det.half_width
-    if static_stretch(results, det.half_width, least) < least:
-        return results, None
-    out, note = drop_holder(results, as_float(next(iter(frames))), det.half_width, px)
+    out, note = drop_holder(results, lambda: as_float(next(iter(frames))), det.half_width, px)
     return out, note
 
 
@@ -422,7 +414,6 @@ def _static_end(reader, det):
     detection when it stands as it is.
     """
     from .motion import end_motion
-    from .segment import AMBIGUOUS_BASE
 
     if det is None or det.base_source != AMBIGUOUS_BASE:
         return None, None, det
