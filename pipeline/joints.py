@@ -33,6 +33,7 @@ import numpy as np
 from scipy.stats import median_abs_deviation
 
 from .centreline import Curve, basis_of, evaluate, jacobian, make_basis
+from .profiles import END_NARROWING_HW
 
 #: F ratio (drop of the midpoints' residual sum of squares on adding the kink,
 #: over their scatter per degree of freedom) above which a joint is kept.
@@ -267,8 +268,11 @@ def width_steps(u: np.ndarray, width: np.ndarray, half_width: float, length: flo
     tuple of float
         The joints, increasing (empty if the width does not step).
     """
-    ok = np.isfinite(width)
-    u, w = np.asarray(u, float)[ok], np.asarray(width, float)[ok]
+    u, w = np.asarray(u, float), np.asarray(width, float)
+    # (read as a step, a rounded end put a joint 1.3 widths from the tip of a
+    # one-section tube, whose last stretch then curled 4-25 deg off)
+    ok = np.isfinite(w) & (u <= 1.0 - END_NARROWING_HW * half_width / length)
+    u, w = u[ok], w[ok]
     if w.size < 20:
         return ()
     sigma = _width_scatter(w)
@@ -360,13 +364,13 @@ class WidthRecord:
 
 
 def _record_blocks(record: WidthRecord, half_width: float, length: float, spacing_px: float):
-    """The record's mean (NaN over the last half-width: a rounded or blurred
-    end narrows the tube there on every frame alike, which the mean would
-    show as a step), and its means over blocks ``spacing_px`` long (the
-    tracker's profile spacing, the scale :data:`MIN_WIDTH_Z` was measured
-    on) with their centres."""
+    """The record's mean (NaN over the last :data:`END_NARROWING_HW`
+    half-widths: a rounded or blurred end narrows the tube there on every
+    frame alike, which the mean would show as a step), and its means over
+    blocks ``spacing_px`` long (the tracker's profile spacing, the scale
+    :data:`MIN_WIDTH_Z` was measured on) with their centres."""
     mean = record.mean()
-    mean[record.u > 1.0 - half_width / length] = np.nan
+    mean[record.u > 1.0 - END_NARROWING_HW * half_width / length] = np.nan
     k = max(int(round(spacing_px * record.u.size / length)), 1)
     n = (record.u.size // k) * k
     ok = np.isfinite(mean[:n]).reshape(-1, k)

@@ -163,6 +163,24 @@ def test_width_steps_skip_profiles_without_a_width():
     assert width_steps(u[:10], w[:10], HW, LENGTH) == ()  # too few to tell
 
 
+def test_a_rounded_end_s_narrowing_on_one_frame_is_no_step():
+    """The widths one frame measures across a round cap, as measured on a 7 px
+    tube 269 px long (its profiles 2 px apart): 2 % narrow 1.7 half-widths
+    from the end, 10 % at 1.1, 15 % at 0.6. Read as a step, they put a joint
+    1.3 widths from the tip of a one-section tube."""
+    hw, length = 3.56, 269.0
+    u = np.arange(0.9, length - 2.0, 2.0) / length
+    rng = np.random.default_rng(0)
+    w = 7.12 + rng.normal(0, 0.03, u.size)
+    from_end = (1 - u) * length / hw
+    w -= np.interp(from_end, [0.5, 1.1, 1.7, 2.0], [1.1, 0.71, 0.15, 0.0])
+    assert width_steps(u, w, hw, length) == ()
+    # a true 4 % step two widths from the end is still found
+    stepped = np.where(from_end < 4.0, w - 0.3, w)
+    (found,) = width_steps(u, stepped, hw, length)
+    assert abs((1 - found) * length / hw - 4.0) < 1.0
+
+
 def test_a_coarse_spline_missing_a_joint_is_told_by_the_finer_one():
     z, _ = _two_arcs(split=0.7)
     u, pts = _midpoints(z, 0.05, seed=4)
