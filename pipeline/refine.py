@@ -318,6 +318,8 @@ class Refined:
         the tube's end lie, on average, from the curve the other profiles
         alone give, px (along the curve's left normal); NaN where not measured
         (see :attr:`TubeLook.end_in_question`) or no valid profile is that near.
+    in_view : (n,) bool ndarray, optional
+        Profiles whose whole search range lies within the image.
     """
 
     curve: Curve
@@ -334,12 +336,29 @@ class Refined:
     noise_px: float = float("inf")
     last_section: LastSection | None = None
     end_offset: float = float("nan")
+    in_view: np.ndarray | None = None
 
     @property
     def valid_fraction(self) -> float:
         """Share of the usable profiles (not dropped at a crossing) that found the tube."""
         mask = self.usable if self.usable is not None else np.ones(self.valid.size, bool)
         return float(self.valid[mask].mean()) if mask.any() else 0.0
+
+    @property
+    def end_gap_px(self) -> float:
+        """How far the last profiles, up to the tube's end, run without the
+        tube's side edges, px along the curve (0 where a crossing dropped any
+        of them, where the spline bridges the gap by design, or where any of
+        them reaches the image's border: :func:`pipeline.view.cut_by_border`
+        tells those frames)."""
+        if self.valid.size == 0 or not self.valid.any():
+            return float(self.curve.length)
+        last = int(np.flatnonzero(self.valid)[-1])
+        if self.usable is not None and not self.usable[last:].all():
+            return 0.0
+        if self.in_view is not None and not self.in_view[last:].all():
+            return 0.0
+        return float((self.u[-1] - self.u[last]) * self.curve.length)
 
     @property
     def coverage(self) -> float:
@@ -624,8 +643,12 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
     strength = float(np.median(edges.strength[edges.valid])) if res.size else 0.0
     mids = np.where(edges.valid, smp.z[idx] + normals * np.where(edges.valid, edges.centre, 0),
                     np.nan)
+    reach = float(np.abs(offsets).max()) + 1.0
+    at = smp.z[idx] - shift
+    in_view = ((at.real >= reach) & (at.real <= image.shape[1] - 1 - reach)
+               & (-at.imag >= reach) & (-at.imag <= image.shape[0] - 1 - reach))
     return Refined(curve, u, width, edges.valid, rms, tip_found, it, strength, ~dropped, mids,
-                   tip_correction, noise, last_section, end_offset)
+                   tip_correction, noise, last_section, end_offset, in_view=in_view)
 
 
 def _end_offset(a_mat, b_vec, weights, lhs, rhs, damp, near_end) -> float:

@@ -124,6 +124,10 @@ NOISE_RESIDUAL_MAX_PX = 1.0
 #: joints are looked for in the frames (:class:`pipeline.joints.WidthRecord`):
 #: by then the record's scatter is a sixth of one frame's.
 RECORD_FRAMES = 32
+#: Longest stretch at the tube's end, in half-widths, that a fit may run
+#: without finding the tube's side edges: further, its end has run on over the
+#: background to some other edge (dust, a blob) taken for the tube's end.
+END_GAP_HW = 2.0
 #: Largest accepted change of the tube's length from one frame to the next.
 MAX_LENGTH_STEP = 0.08
 #: Consecutive lost frames after which the tracker starts from scratch.
@@ -668,6 +672,7 @@ def _good(r: Refined, look: TubeLook) -> bool:
     # at a crossing the spline bridges the dropped profiles from both sides, as
     # long as most of the tube is still seen
     return (r.valid_fraction >= MIN_VALID and r.coverage >= MIN_COVERAGE and r.tip_found
+            and r.end_gap_px <= END_GAP_HW * look.mean_half_width
             and r.residual_px <= max(0.5, 0.08 * look.mean_half_width,
                                      min(NOISE_RESIDUAL_RATIO * r.noise_px,
                                          NOISE_RESIDUAL_MAX_PX)))
@@ -680,6 +685,13 @@ def _accepted(r: Refined | None, look: TubeLook, length: float) -> bool:
     beyond the tip, followed over the rounds."""
     return (r is not None and _good(r, look)
             and abs(r.curve.length - length) <= MAX_LENGTH_STEP * length)
+
+
+def _ran_on(r: Refined, look: TubeLook, length: float) -> str:
+    """Why a fit whose end ran on without the tube's side edges is lost."""
+    if abs(r.curve.length - length) > MAX_LENGTH_STEP * length:
+        return "lost: the tube's length jumped (end not found)"
+    return "lost: the end ran on past the tube's side edges (end not found)"
 
 
 def _score(r: Refined) -> float:
@@ -1140,6 +1152,8 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
                   else "lost: the tube's length jumped (end not found)" if _good(r, look)
                   else "lost: edges not found along the tube" if r.valid_fraction < MIN_VALID
                   else "lost: tip not found" if not r.tip_found
+                  else _ran_on(r, look, last_length)
+                  if r.end_gap_px > END_GAP_HW * look.mean_half_width
                   else "lost: edges do not fit a smooth tube")
         return FrameTrack(index, reason, None, stage, r.residual_px, r.valid_fraction, work,
                           crossing=crossing)
