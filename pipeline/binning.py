@@ -87,7 +87,11 @@ class Binning:
         d = self.factor
         return replace(track, curve=self.curve_back(track.curve),
                        fit=self.curve_back(track.fit), residual_px=d * track.residual_px,
-                       end_offset=d * track.end_offset)
+                       end_offset=d * track.end_offset,
+                       end_steps=(None if track.end_steps is None
+                                  else track.end_steps * np.array([d, 1.0, d])),
+                       end_step=(None if track.end_step is None
+                                 else (d * track.end_step[0], d * track.end_step[1])))
 
     def describe(self, half_width: float) -> str:
         """A line for the run's notes; ``half_width`` is the tube's, px."""

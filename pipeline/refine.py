@@ -39,6 +39,12 @@ from .profiles import FADED_COS, Edges, edge_pairs, end_edge, sample_lines, samp
 #: ±1.5 px were worse on two sets of the five.
 STRIP_LINES = 3
 STRIP_HALF_PX = 1.0
+#: The stretches at the tube's end, in half-widths, over which a fit measures
+#: how far the edge midpoints there step sideways from the line the rest of
+#: the tube gives (:attr:`Refined.end_steps`, :attr:`TubeLook.end_step_px`).
+#: A sealed tube's plug, where the lumen that pulls the body's midpoints off
+#: its axis has ended, is 1.3-1.7 half-widths long behind a round cap.
+END_STEP_ZONES_HW = tuple(np.arange(0.5, 3.01, 0.25))
 #: Where a tube's end face pulls its side edges off the rest's line
 #: (:attr:`TubeLook.end_clear`), the profiles stop this many half-widths short
 #: of its end (2 px otherwise), and :attr:`Refined.end_offset` is measured over
@@ -167,6 +173,22 @@ class TubeLook:
         face's blur pulls them off the line the rest of the tube's edges give
         (see :attr:`Refined.end_offset`). A relief leaves them out whether
         or not this is set (:attr:`clears_end`).
+    end_step_px : float or None
+        The stretch at the tube's end, px, whose edge midpoints sit off the
+        line the rest of the tube's give by a steady amount (0: none; None:
+        not known yet, fits measure it, see :attr:`Refined.end_steps`). A
+        tube whose walls differ in thickness (its lumen off-centre) shows its
+        edge midpoints off its axis by a fraction of a pixel all along the
+        lumen, under blur; past the lumen's end (a sealed tip's plug) they
+        come back to it, and a fit that followed them turned the tip tangent
+        1-4 deg. Fits give the stretch a sideways offset of its own, free on
+        each frame: its profiles then hold the tip's direction and bend, not
+        its place across the tube.
+    end_step_offset : float
+        How far the stretch's midpoints sat off the rest's line on the frames
+        that told it, px (along the curve's left normal): reported only (a
+        learned value taken off them instead had turned the tip 0.1-0.5 deg
+        the wrong way on tubes whose end was merely noisy).
     """
 
     polarity: int
@@ -175,6 +197,8 @@ class TubeLook:
     smooth_px: float = 0.8
     shear: float | None = None
     end_clear: bool = False
+    end_step_px: float | None = 0.0
+    end_step_offset: float = 0.0
 
     def facing(self, normals: np.ndarray):
         """Which way a relief's edges step along profiles in the directions
@@ -200,6 +224,14 @@ class TubeLook:
         its surroundings at its edges whose end's edges are still in (see
         :class:`pipeline.track._EndVotes` for why only those)."""
         return self.polarity == 1 and not self.end_clear
+
+    @property
+    def end_step_in_question(self) -> bool:
+        """Whether fits measure :attr:`Refined.end_steps`: while
+        :attr:`end_step_px` is not known, on a tube darker than its
+        surroundings at its edges (a brighter one has :attr:`end_in_question`,
+        a relief leaves its end's edges out)."""
+        return self.polarity == -1 and self.end_step_px is None
 
     def half_width_at(self, u) -> np.ndarray:
         grid = np.linspace(0.0, 1.0, self.half_width.size)
@@ -320,6 +352,12 @@ class Refined:
         (see :attr:`TubeLook.end_in_question`) or no valid profile is that near.
     in_view : (n,) bool ndarray, optional
         Profiles whose whole search range lies within the image.
+    end_steps : (Z, 3) ndarray, optional
+        For each stretch of :data:`END_STEP_ZONES_HW` half-widths at the end:
+        the same mean offset there (NaN where no valid profile is that near),
+        the weight of the profiles it is the mean of, and its standard error
+        from the edges' residual variance, px; measured while
+        :attr:`TubeLook.end_step_in_question`.
     """
 
     curve: Curve
@@ -336,6 +374,7 @@ class Refined:
     noise_px: float = float("inf")
     last_section: LastSection | None = None
     end_offset: float = float("nan")
+    end_steps: np.ndarray | None = None
     in_view: np.ndarray | None = None
 
     @property
@@ -478,6 +517,7 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
     k = curve.coef.size
     n_extra = 2 if free_base else 0
     n_par = k + 1 + n_extra
+    end_steps = None
     min_strength = 0.25 * look.strength
     stiff_px = max(TIP_STIFF_WIDTHS * 2 * hw, TIP_STIFF_MIN_PX)
     tip_rows = basis.quad_second[basis.quad_u > 1.0 - stiff_px / curve.length]
@@ -539,6 +579,9 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
             weights[valid] = np.minimum(1.0, max(1.0, 3.0 * sig) / np.maximum(dev, 1e-9))
         a_rows = [rows * weights[:, None]]
         b_rows = [delta * weights]
+        if look.end_step_px:
+            a_rows[0], b_rows[0] = _own_offset(a_rows[0], b_rows[0], weights,
+                                               (1.0 - u) * curve.length < look.end_step_px)
         tip_found = False
         if fit_length:
             tip_off, tip_found = _tip_offset(image, smp, shift, look, window, step,
@@ -601,6 +644,12 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
             if look.end_in_question:
                 end_offset = _end_offset(a_mat, b_vec, weights, lhs, rhs, damp,
                                          (1.0 - u) * curve.length < END_CLEAR_HW * hw)
+            if look.end_step_in_question:
+                from_end = (1.0 - u) * curve.length
+                end_steps = np.array([
+                    (_end_offset(a_mat, b_vec, weights, lhs, rhs, damp, near),
+                     weights[near].sum(), np.sqrt(var / max(weights[near].sum(), 1e-9)))
+                    for near in (from_end < z * hw for z in END_STEP_ZONES_HW)])
         if last and output_stiffness > tip_stiffness and not free_base:
             # the same step with the tip held stiffer, for the shape reported
             # (one more solve of the same small system; the fit itself, which
@@ -648,7 +697,22 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
     in_view = ((at.real >= reach) & (at.real <= image.shape[1] - 1 - reach)
                & (-at.imag >= reach) & (-at.imag <= image.shape[0] - 1 - reach))
     return Refined(curve, u, width, edges.valid, rms, tip_found, it, strength, ~dropped, mids,
-                   tip_correction, noise, last_section, end_offset, in_view=in_view)
+                   tip_correction, noise, last_section, end_offset, end_steps, in_view=in_view)
+
+
+def _own_offset(a_w, b_w, weights, zone):
+    """The weighted rows ``a_w``, ``b_w`` of the side edges' least squares with
+    the profiles in ``zone`` given a sideways offset of their own: the same
+    solution as an extra unknown for it, eliminated (each of those rows less
+    the zone's mean, weighted as the rows are)."""
+    w = np.where(zone, weights, 0.0)
+    total = w @ w
+    if total <= 0.0:
+        return a_w, b_w
+    a_w, b_w = a_w.copy(), b_w.copy()
+    a_w[zone] -= np.outer(weights[zone], (w @ a_w) / total)
+    b_w[zone] -= weights[zone] * ((w @ b_w) / total)
+    return a_w, b_w
 
 
 def _end_offset(a_mat, b_vec, weights, lhs, rhs, damp, near_end) -> float:

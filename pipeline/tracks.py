@@ -290,6 +290,9 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
     notes.append(_look_note(results))
     notes.append(_smoothing_note(results, binning))
     notes.append(_end_note(results))
+    step_note = _end_step_note(results)
+    if step_note:
+        notes.append(step_note)
     if view_note:
         notes.append(view_note)
     if still_note:
@@ -498,6 +501,22 @@ def _look_note(results) -> str:
                  "; its shear never told (the tube never turned across it): each frame's "
                  "edges were read the one way that fits them best")
     return note
+
+
+def _end_step_note(results) -> str | None:
+    """Whether a dark tube's end was given a sideways offset of its own, and
+    why (None where it was not looked for)."""
+    told = [r for r in results if r.ok and r.end_step is not None]
+    if told:
+        px, offset = told[0].end_step
+        return (f"the last {px:.1f} px of the tube given a sideways offset of their own in the "
+                f"fits from frame {told[0].frame} on: their edge midpoints sat {offset:+.2f} px "
+                "off the line the rest of the tube's give, steadily (a sealed end past an "
+                "off-centre lumen); they hold the tip's direction, not its place across the tube")
+    if any(r.ok and r.end_steps is not None for r in results):
+        return ("the tube's end given no sideways offset of its own: its edge midpoints sat "
+                "on the line the rest of the tube's give")
+    return None
 
 
 def _end_note(results) -> str:

@@ -1,0 +1,140 @@
+"""A dark tube's end whose edge midpoints step sideways off the rest's line
+(a sealed tip past an off-centre lumen): measured, told over the frames, and
+given a sideways offset of its own."""
+import numpy as np
+import pytest
+
+from pipeline.centreline import fit_to_polyline
+from pipeline.refine import END_STEP_ZONES_HW, TubeLook, _own_offset, refine
+from pipeline.track import END_STEP_MAX_FRAMES, END_VOTE_FRAMES, FrameTrack, _EndStepVotes
+from pipeline.tracks import _end_step_note
+from tests.pipeline.synthetic import arc_axis, tube_image
+
+SHAPE = (200, 480)
+BASE = 40 - 100j
+LENGTH = 400.0
+HW = 8.0
+STEP_PX = 12.0  # 1.5 half-widths
+
+
+def _stepped_tube(shift: float, noise: float = 0.0):
+    """A dark straight tube along +x whose last ``STEP_PX`` sit ``shift`` px to its left."""
+    kw = dict(polarity=-1, noise=noise, seed=3)
+    body = tube_image(SHAPE, BASE, 0.0, LENGTH, 0.0, HW, **kw)
+    end = tube_image(SHAPE, BASE + 1j * shift, 0.0, LENGTH, 0.0, HW, **kw)
+    cols = np.arange(SHAPE[1])[None, :]
+    return np.where(cols >= BASE.real + LENGTH - STEP_PX, end, body).astype(np.float32)
+
+
+def _truth():
+    z, _ = arc_axis(BASE, 0.0, LENGTH, 0.0)
+    return fit_to_polyline(z, 0.0, n_coef=12)
+
+
+def _look(step_px):
+    return TubeLook(-1, np.full(5, HW), 0.05, end_step_px=step_px)
+
+
+@pytest.mark.parametrize("shift", [0.0, 0.3, -0.3])
+def test_the_end_steps_are_how_far_the_ends_midpoints_sit_off_the_rests_line(shift):
+    r = refine(_stepped_tube(shift), _truth(), _look(None), iterations=8, tol_px=0.005)
+    assert r.end_steps.shape == (len(END_STEP_ZONES_HW), 3)
+    offset, weight, se = r.end_steps.T
+    # the full step is seen over a stretch a little longer than it (over a
+    # shorter one the rest's line is pulled by the step's profiles left in)
+    best = int(np.argmax(offset**2 * weight))
+    assert offset[best] == pytest.approx(shift, abs=0.05)
+    if shift:
+        assert STEP_PX <= END_STEP_ZONES_HW[best] * HW <= STEP_PX + HW
+    assert np.all(np.diff(weight) >= 0) and np.all((se >= 0) & (se < 0.05))
+    # not measured once told, nor on a tube brighter than its surroundings
+    assert refine(_stepped_tube(shift), _truth(), _look(STEP_PX), iterations=2).end_steps is None
+    bright = TubeLook(1, np.full(5, HW), 0.05, end_step_px=None)
+    assert refine(1.0 - _stepped_tube(shift), _truth(), bright, iterations=2).end_steps is None
+
+
+def _told(shift: float) -> TubeLook:
+    """The look the first frames' votes give, on noisy frames of the stepped tube."""
+    votes, look = _EndStepVotes(), _look(None)
+    for k in range(END_VOTE_FRAMES):
+        img = _stepped_tube(shift, noise=0.01)
+        img = img + np.random.default_rng(k).normal(0.0, 0.01, img.shape).astype(np.float32)
+        look = votes.add(refine(img, _truth(), look, iterations=8).end_steps, look)
+    return look
+
+
+def test_a_told_step_keeps_the_tip_tangent_on_the_rests_line():
+    look = _told(0.4)
+    assert STEP_PX <= look.end_step_px <= STEP_PX + HW
+    img = _stepped_tube(0.4, noise=0.01)
+    followed = refine(img, _truth(), _look(0.0), iterations=8, tol_px=0.005)
+    own = refine(img, _truth(), look, iterations=8, tol_px=0.005)
+    # the truth's tip tangent is the rest's: 0 (the end is shifted, not turned)
+    tip_followed = abs(np.degrees(followed.curve.coef[-1]))
+    assert tip_followed > 0.8
+    assert abs(np.degrees(own.curve.coef[-1])) < 0.25 * tip_followed
+    # a tube without a step is told none
+    assert _told(0.0).end_step_px is None
+
+
+def test_the_own_offset_is_the_least_squares_with_an_extra_unknown():
+    rng = np.random.default_rng(0)
+    a, b = rng.normal(size=(30, 4)), rng.normal(size=30)
+    weights = rng.uniform(0.2, 1.0, 30)
+    zone = np.arange(30) >= 22
+    a_w, b_w = a * weights[:, None], b * weights
+    extra = np.column_stack([a_w, np.where(zone, weights, 0.0)])
+    x_extra = np.linalg.lstsq(extra, b_w, rcond=None)[0][:4]
+    a_o, b_o = _own_offset(a_w, b_w, weights, zone)
+    np.testing.assert_allclose(np.linalg.lstsq(a_o, b_o, rcond=None)[0], x_extra, atol=1e-10)
+    # the rows outside the zone are untouched; an empty zone changes nothing
+    np.testing.assert_array_equal(a_o[~zone], a_w[~zone])
+    a_n, b_n = _own_offset(a_w, b_w, weights, np.zeros(30, bool))
+    np.testing.assert_array_equal(a_n, a_w)
+
+
+def _steps(offsets, weight=6.0, se=0.02):
+    """An ``end_steps`` row set: ``offsets`` per stretch."""
+    offsets = np.asarray(offsets, float)
+    return np.column_stack([offsets, np.full(offsets.size, weight), np.full(offsets.size, se)])
+
+
+def test_a_steady_step_is_told_and_scatter_or_a_growing_misfit_is_not():
+    z = np.array(END_STEP_ZONES_HW)
+    # a step over 1.5 half-widths: full there, diluted beyond, partial before
+    step = np.where(z <= 1.5, 0.25 * z / 1.5, 0.25 * 1.5 / z)
+    votes, look = _EndStepVotes(), _look(None)
+    for k in range(END_VOTE_FRAMES):
+        assert look.end_step_px is None, k  # not before enough frames
+        look = votes.add(_steps(step + 0.01 * (-1) ** k), look)
+    assert look.end_step_px == pytest.approx(1.5 * HW)
+    assert votes.told[1] == pytest.approx(0.25, abs=0.02)
+    # zero-mean scatter: never told, and no longer looked for after a while
+    rng = np.random.default_rng(2)
+    votes, look = _EndStepVotes(), _look(None)
+    for _ in range(END_STEP_MAX_FRAMES):
+        look = votes.add(_steps(rng.normal(0.0, 0.2, z.size)), look)
+    assert look.end_step_px == 0.0 and votes.told is None
+    # an offset still growing at the longest stretch is a bend the fit misses
+    votes, look = _EndStepVotes(), _look(None)
+    for _ in range(END_VOTE_FRAMES + 2):
+        look = votes.add(_steps(0.3 * z / z[-1]), look)
+    assert not look.end_step_px
+    # steady but within the edges' noise: not told
+    votes, look = _EndStepVotes(), _look(None)
+    for _ in range(END_VOTE_FRAMES + 2):
+        look = votes.add(_steps(step, se=0.2), look)
+    assert not look.end_step_px
+
+
+def test_the_run_notes_say_whether_the_end_was_given_its_own_offset():
+    curve = _truth()
+    told = [FrameTrack(k, "ok", curve, "fast", end_step=(12.0, 0.31) if k >= 4 else None,
+                       end_steps=_steps(np.zeros(3)) if k < 4 else None) for k in range(6)]
+    note = _end_step_note(told)
+    assert note.startswith("the last 12.0 px of the tube given a sideways offset") and (
+        "from frame 4 on" in note and "+0.31 px" in note)
+    looked = [FrameTrack(k, "ok", curve, "fast", end_steps=_steps(np.zeros(3))) for k in range(3)]
+    assert _end_step_note(looked).startswith("the tube's end given no sideways offset")
+    # a bright tube's end is not looked at this way: no note
+    assert _end_step_note([FrameTrack(0, "ok", curve, "fast")]) is None
