@@ -1082,10 +1082,9 @@ def _refitted(pending, base: complex | None, turn: float, look: TubeLook | None,
                 "first frames show"))
         r = refine(image, moved, look, iterations=settings.first_rounds,
                    avoid_contact=result.crossing, tol_px=settings.tol_px)
-        told = (look.end_step_px, look.end_step_offset) if look.end_step_px else None
         out.append(replace(result, curve=_reported(r), fit=r.curve, residual_px=r.residual_px,
                            valid_fraction=r.valid_fraction, last_section=r.last_section,
-                           end_clear=look.clears_end, end_step=told)
+                           end_clear=look.clears_end, end_step=_told_step(look))
                    if _good(r, look) else result)
     # a frame lost before a later one was measured (a first frame the tracker
     # could not start on, that the next one started on) is tracked backwards
@@ -1100,12 +1099,16 @@ def _refitted(pending, base: complex | None, turn: float, look: TubeLook | None,
                 out[i] = FrameTrack(out[i].frame, "ok", _reported(r), "backward", r.residual_px,
                                     r.valid_fraction, fit=r.curve, crossing=crossing,
                                     last_section=r.last_section,
-                                    end_step=((look.end_step_px, look.end_step_offset)
-                                              if look.end_step_px else None))
+                                    end_step=_told_step(look))
         # a motion only between consecutive frames
         after = later if out[i].ok and i + 1 < len(out) and out[i + 1].ok else None
         later = out[i].tracked if out[i].ok else later
     return out
+
+
+def _told_step(look: TubeLook) -> tuple[float, float] | None:
+    """:attr:`FrameTrack.end_step` of a fit with ``look``."""
+    return (look.end_step_px, look.end_step_offset) if look.end_step_px else None
 
 
 def _from_later(image: np.ndarray, later: Curve, look: TubeLook, settings: TrackSettings,
