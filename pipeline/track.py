@@ -704,13 +704,17 @@ def _accepted(r: Refined | None, look: TubeLook, length: float) -> bool:
     ``length`` (a neighbouring frame's): a tube does not grow or shrink by a
     tenth between frames, and an end found that far off is noise or dust
     beyond the tip, followed over the rounds."""
-    return (r is not None and _good(r, look)
-            and abs(r.curve.length - length) <= MAX_LENGTH_STEP * length)
+    return r is not None and _good(r, look) and _length_kept(r, length)
 
 
-def _ran_on(r: Refined, look: TubeLook, length: float) -> str:
+def _length_kept(r: Refined, length: float) -> bool:
+    """Whether the fit's length is within :data:`MAX_LENGTH_STEP` of ``length``."""
+    return abs(r.curve.length - length) <= MAX_LENGTH_STEP * length
+
+
+def _ran_on(r: Refined, length: float) -> str:
     """Why a fit whose end ran on without the tube's side edges is lost."""
-    if abs(r.curve.length - length) > MAX_LENGTH_STEP * length:
+    if not _length_kept(r, length):
         return "lost: the tube's length jumped (end not found)"
     return "lost: the end ran on past the tube's side edges (end not found)"
 
@@ -828,8 +832,8 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
             if not result.crossing:
                 look = end_votes.add(result.end_offset, look)
                 look = end_step_votes.add(result.end_steps, look)
-            if end_step_votes.told is not None:
-                result = replace(result, end_step=end_step_votes.told)
+            if look.end_step_px:
+                result = replace(result, end_step=_told_step(look))
             if look.polarity == 0 and look.shear is None and not result.crossing:
                 image = as_float(frame) if image is None else image
                 look = shear_votes.add(image, result.tracked, look)
@@ -945,8 +949,6 @@ class _EndStepVotes:
     """
 
     steps: list[np.ndarray] = field(default_factory=list)
-    #: (stretch, px; mean offset, px) once told
-    told: tuple[float, float] | None = None
 
     def add(self, steps: np.ndarray | None, look: TubeLook) -> TubeLook:
         """``look``, with its end's stretch set once the frames so far tell it."""
@@ -971,7 +973,6 @@ class _EndStepVotes:
             if (mean >= END_OFFSET_MIN_PX and mean >= END_OFFSET_Z * se
                     and z_noise >= END_STEP_Z):
                 px = END_STEP_ZONES_HW[best] * look.mean_half_width
-                self.told = (px, float(col.mean()))
                 return replace(look, end_step_px=px, end_step_offset=float(col.mean()))
         if len(self.steps) >= END_STEP_MAX_FRAMES:
             return replace(look, end_step_px=0.0)
@@ -1244,7 +1245,7 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
                   else "lost: the tube's length jumped (end not found)" if _good(r, look)
                   else "lost: edges not found along the tube" if r.valid_fraction < MIN_VALID
                   else "lost: tip not found" if not r.tip_found
-                  else _ran_on(r, look, last_length)
+                  else _ran_on(r, last_length)
                   if r.end_gap_px > END_GAP_HW * look.mean_half_width
                   else "lost: edges do not fit a smooth tube")
         return FrameTrack(index, reason, None, stage, r.residual_px, r.valid_fraction, work,

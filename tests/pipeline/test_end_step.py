@@ -108,13 +108,13 @@ def test_a_steady_step_is_told_and_scatter_or_a_growing_misfit_is_not():
         assert look.end_step_px is None, k  # not before enough frames
         look = votes.add(_steps(step + 0.01 * (-1) ** k), look)
     assert look.end_step_px == pytest.approx(1.5 * HW)
-    assert votes.told[1] == pytest.approx(0.25, abs=0.02)
+    assert look.end_step_offset == pytest.approx(0.25, abs=0.02)
     # zero-mean scatter: never told, and no longer looked for after a while
     rng = np.random.default_rng(2)
     votes, look = _EndStepVotes(), _look(None)
     for _ in range(END_STEP_MAX_FRAMES):
         look = votes.add(_steps(rng.normal(0.0, 0.2, z.size)), look)
-    assert look.end_step_px == 0.0 and votes.told is None
+    assert look.end_step_px == 0.0 and look.end_step_offset == 0.0
     # an offset still growing at the longest stretch is a bend the fit misses
     votes, look = _EndStepVotes(), _look(None)
     for _ in range(END_VOTE_FRAMES + 2):
