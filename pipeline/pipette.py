@@ -9,16 +9,22 @@ angle does not: the tube leaves the holder along its axis).
 
 The video tells. The tube bends; its holder does not move. So when the
 stretch from the tracked base over which every well-bent frame lies on the
-first frame's centreline is long (several tube widths), it is looked at in the
-first frame: if the profiles across it step at one place (glass to tube, band
-to tube) by far more than their own scatter, and a steady trend along it (a
-shading, a taper) does not explain them as well, that place is where the tube
-leaves the holder, and every frame's centreline is cut there.
+first frame's centreline is long (several tube widths), it is looked at:
 
-Not run where the base is known: given (``--base``), or found at a narrower
-pipette's width step. A tube's own base stretch, free, moves off the first
-frame's line once it bends (by κs²/2); on a thin or little-bent tube it may
-stay within a pixel for a few widths, which is why the profiles must step too.
+- in the first frame: if the profiles across it step at one place (glass to
+  tube, band to tube) by far more than their own scatter, and a steady trend
+  along it (a shading, a taper) does not explain them as well, that place is
+  where the tube leaves the holder;
+- else in the bent frames: a tube clamped at ``s0`` leaves the line it lay on
+  by ``κ(s − s0)²/2``. Fitted to every bent frame, ``s0`` is where the tube
+  leaves the holder when it fits far better than the tracked base does (a
+  holder of the tube's own look, a tapered glass whose profiles change
+  steadily).
+
+Every frame's centreline is then cut there. Not run where the base is given
+(``--base``). A tube's own base stretch, free, moves off the first frame's
+line once it bends (by κs²/2); on a thin or little-bent tube it may stay within
+a pixel for a few widths, and the hinge fit then finds it at the tracked base.
 """
 
 from __future__ import annotations
@@ -50,6 +56,26 @@ MIN_CHANGE = 7.0
 #: changes the profiles too, but steadily (a linear shading: 0.6; holders
 #: measured 1.3-7).
 STEP_OVER_TREND = 1.2
+#: Where the profiles do not step (a tapered glass changes them steadily; a
+#: holder of the tube's own look), the bent frames' sideways deviations from
+#: the first frame's line are fitted as ``c·max(0, s − s0)²`` (a clamped tube
+#: bending at steady curvature), over each frame's stretch until it is this many
+#: px off (or half the tube's half-width, if more)...
+HINGE_SPAN_PX = 2.0
+#: ... and the hinge ``s0`` is taken when it lowers the residual against one at
+#: the tracked base by at least this many times the residual variance per point
+#: (an F-like statistic: holders gave 3·10^4 to 2·10^6; a tube's own base, 0 on
+#: the tests; a stiff first section of the tube 4·10^4, which the spread below
+#: tells)...
+MIN_HINGE_GAIN = 100.0
+#: ... and every bent frame (at least :data:`MIN_HINGE_FRAMES` of them), fitted
+#: alone, puts it within this many px (at least; and a quarter of the tube's
+#: half-width) of the others: a holder is where it is whatever the bend, while
+#: a stiff first section of the tube (it bends, slightly) seems to end earlier
+#: the more the tube bends (a section at 1/25 of the rest's curvature: 12 px
+#: over the video; holders 1-1.5 px).
+HINGE_SPREAD_PX = 2.0
+MIN_HINGE_FRAMES = 3
 #: Status of a frame whose centreline does not pass where the holder ends.
 OFF_HOLDER = "lost: the tube's start not found at the holder's end"
 
@@ -78,6 +104,73 @@ def static_stretch(results: list[FrameTrack], half_width: float, at_least: float
         if still < at_least:
             break
     return still
+
+
+def motion_hinge(results: list[FrameTrack], half_width: float, upto: float
+                 ) -> tuple[float, float, float]:
+    """Where along the first ok frame's centreline the well-bent frames leave it.
+
+    A tube clamped at ``s0`` and bending at steady curvature κ leaves the line
+    it lay on by ``κ·(s − s0)²/2``: every frame bent at least
+    :data:`MIN_BEND_DEG` is fitted so, with a curvature of its own and ``s0``
+    shared, over its first stretch still within :data:`HINGE_SPAN_PX` (or half
+    the half-width) of the line.
+
+    Parameters
+    ----------
+    results : list of FrameTrack
+        The tracked frames, px.
+    half_width : float
+        The tube's, px.
+    upto : float
+        Largest ``s0`` looked at, px of arc from the tracked base.
+
+    Returns
+    -------
+    s0 : float
+        Arc length of the first ok frame's centreline where the tube leaves
+        it, px (on a 0.5-px grid); 0 without bent frames.
+    gain : float
+        How much better ``s0`` fits than a hinge at the tracked base: the drop
+        in the residual sum of squares over the residual variance per point;
+        0 without bent frames.
+    spread : float
+        The range of ``s0`` fitted to each bent frame alone, px; infinite with
+        fewer than :data:`MIN_HINGE_FRAMES` bent frames.
+    """
+    from scipy.spatial import cKDTree
+
+    ok = [r for r in results if r.ok]
+    bent = [r for r in ok[1:] if abs(np.degrees(r.bend_angle_rad)) >= MIN_BEND_DEG]
+    if not bent or upto <= 0:
+        return 0.0, 0.0, np.inf
+    arc, ref, _, normal = _sampled(ok[0].curve, 0.25)
+    tree = cKDTree(np.c_[ref.real, ref.imag])
+    grid = np.arange(0.0, upto + 0.25, 0.5)
+    span = max(HINGE_SPAN_PX, 0.5 * half_width)
+    sse = np.zeros((len(bent), grid.size))
+    n_points = 0
+    for i, r in enumerate(bent):
+        _, z = resample(r.curve, 1.0)
+        _, k = tree.query(np.c_[z.real, z.imag])
+        dev = ((z - ref[k]) * np.conj(normal[k])).real
+        far = np.abs(dev) > span
+        n = int(np.argmax(far)) if far.any() else dev.size
+        s, dev = arc[k[:n]], dev[:n]
+        x = np.clip(s[:, None] - grid[None, :], 0.0, None) ** 2
+        xx = np.einsum("ij,ij->j", x, x)
+        xd = dev @ x
+        sse[i] = dev @ dev - np.where(xx > 0, xd**2 / np.maximum(xx, 1e-300), 0.0)
+        n_points += n
+    total = sse.sum(axis=0)
+    best = int(np.argmin(total))
+    dof = n_points - len(bent) - 1
+    if dof < 1:
+        return 0.0, 0.0, np.inf
+    var = max(total[best] / dof, 1e-12)
+    each = grid[np.argmin(sse, axis=1)]
+    spread = float(np.ptp(each)) if len(bent) >= MIN_HINGE_FRAMES else np.inf
+    return float(grid[best]), float((total[0] - total[best]) / var), spread
 
 
 def _sampled(curve: Curve, spacing_px: float = 1.0):
@@ -203,7 +296,13 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
     if still < least:
         return results, None
     s, change = profile_change(first_frame(), first, half_width, still + 2 * half_width)
-    if change < MIN_CHANGE or s < least or first.length - s < MIN_TUBE_SHARE * first.length:
+    told = (f"its profile stepped there by {change:.0f}x its scatter" if change >= MIN_CHANGE
+            else None)
+    if told is None:
+        s, gain, spread = motion_hinge(results, half_width, still + 2 * half_width)
+        if gain >= MIN_HINGE_GAIN and spread <= max(HINGE_SPREAD_PX, 0.25 * half_width):
+            told = "the bent frames leave its line there as a tube clamped there would"
+    if told is None or s < least or first.length - s < MIN_TUBE_SHARE * first.length:
         return results, None
     arc, z, _, _ = _sampled(first, 0.25)
     end = complex(np.interp(s, arc, z.real), np.interp(s, arc, z.imag))
@@ -228,6 +327,5 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
                                 if r.fit is not None and at >= 1.0 else r.fit),
                            last_section=None))
     return out, (f"the tracked structure's first {s * px:.0f} px stood still on every frame "
-                 f"while the rest bent, and its profile stepped there by {change:.0f}x its "
-                 "scatter: a holder (pipette) taken for the tube, cut off every frame (its "
-                 "axis the base tangent)")
+                 f"while the rest bent, and {told}: a holder (pipette) taken for the tube, cut "
+                 "off every frame (its axis the base tangent)")

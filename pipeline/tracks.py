@@ -25,7 +25,7 @@ from .field import Field, field_stop
 from .margins import Margins, blank_margins
 from .pipette import drop_holder
 from .refine import END_CLEAR_HW
-from .segment import AMBIGUOUS_BASE, PIPETTE_STEP, detect
+from .segment import AMBIGUOUS_BASE, detect
 from .track import (
     EDGE_SCALES,
     JOINT_CHECK_DEG,
@@ -399,10 +399,9 @@ def _stood_still(frames, results, det):
 
 
 def _without_holder(frames, results, det, base_hint, px):
-    """:func:`pipeline.pipette.drop_holder`, where the base is not known: not
-    given, nor found at a narrower pipette's width step."""
-    if (det is None or base_hint is not None or not results or not results[0].ok
-            or results[0].base_source.startswith(PIPETTE_STEP)):
+    """:func:`pipeline.pipette.drop_holder`, where the base is not given (a
+    narrower pipette's width step may be a step along the holder itself)."""
+    if det is None or base_hint is not None or not results or not results[0].ok:
         return results, None
     out, note = drop_holder(results, lambda: as_float(next(iter(frames))), det.half_width, px)
     return out, note

@@ -43,11 +43,12 @@ def _signed_position(zp, base, angle, length, kappa):
 
 def tube_image(shape, base, angle, length, kappa, half_width, *, polarity=-1,
                background=0.8, contrast=0.35, edge_px=0.7, noise=0.0, seed=0,
-               pipette_half_width=None):
+               pipette_half_width=None, pipette_contrast=0.5):
     """A float32 frame of one tube (and optionally a coaxial pipette behind its base).
 
     The tube is ``half_width`` wide on each side of the axis, with soft (erf)
     edges of scale ``edge_px``; transmitted-light looks have ``polarity`` −1.
+    The pipette's contrast is ``pipette_contrast`` times the tube's.
     """
     rows, cols = shape
     rr, cc = np.mgrid[0:rows, 0:cols]
@@ -62,7 +63,7 @@ def tube_image(shape, base, angle, length, kappa, half_width, *, polarity=-1,
         rel = (zp - base) * np.exp(-1j * angle)
         behind = 0.5 * (1 + erf(-rel.real / edge_px))
         pip = behind * 0.5 * (1 + erf((pipette_half_width - np.abs(rel.imag)) / edge_px))
-        img *= 1 + polarity * 0.5 * contrast * pip
+        img *= 1 + polarity * pipette_contrast * contrast * pip
     if noise:
         img += np.random.default_rng(seed).normal(0, noise, shape)
     return np.clip(img, 0, 1).astype(np.float32)

@@ -17,17 +17,20 @@ BASE, ANGLE, LENGTH, HW = 420 - 240j, np.pi, 300.0, 8.0
 TURN = -3.5
 
 
-def _video(tmp_path, holder: float | None, n: int = 8, base=BASE, turn=TURN, hw=HW):
+def _video(tmp_path, holder: float | None, n: int = 8, base=BASE, turn=TURN, hw=HW,
+           holder_look: float = 0.5):
     """A dark tube bending clockwise from straight to 200 deg, held (``holder``:
-    that many of its half-widths wide, half as dark, running to the border) or
-    starting at the border itself; frames as PNGs, and the true bends (deg)."""
+    that many of its half-widths wide, ``holder_look`` times as dark, running to
+    the border) or starting at the border itself; frames as PNGs, and the true
+    bends (deg)."""
     folder = tmp_path / "frames"
     folder.mkdir()
     bends = []
     for k in range(n):
         kappa = turn * k / (n - 1) / LENGTH
         img = tube_image((480, 640), base, ANGLE, LENGTH, kappa + 1e-12, hw, noise=0.01,
-                         seed=k, pipette_half_width=None if holder is None else holder * hw)
+                         seed=k, pipette_half_width=None if holder is None else holder * hw,
+                         pipette_contrast=holder_look)
         cv2.imwrite(str(folder / f"f{k:02d}.png"), (img * 255).round().astype(np.uint8))
         bends.append(np.degrees(kappa * LENGTH))
     return folder, np.array(bends)
@@ -46,11 +49,81 @@ def test_a_holder_as_wide_as_the_tube_is_cut_off_every_frame(tmp_path, monkeypat
     run = json.loads((tmp_path / "out" / "run.json").read_text())
     assert "holder" in run["base_source"]
     assert any("holder (pipette) taken for the tube" in n for n in run["left_out_and_why"])
+    assert any("profile stepped there" in n for n in run["left_out_and_why"])
     # without the test the tube runs on to the border, 218 px too long
     monkeypatch.setattr(pipette, "MIN_CHANGE", np.inf)
+    monkeypatch.setattr(pipette, "MIN_HINGE_GAIN", np.inf)
     track_video(folder, tmp_path / "kept", um_per_px=1.0)
     kept = pd.read_csv(tmp_path / "kept" / "tracks.csv")
     assert kept.length_um.min() > LENGTH + 150
+
+
+def test_a_holder_of_the_tube_s_own_look_is_cut_where_the_bending_starts(tmp_path,
+                                                                       monkeypatch):
+    # a holder exactly as wide and as dark as the tube: one frame cannot tell
+    # where the tube starts (the profiles do not step), but the frames bending
+    # from there on do
+    folder, bends = _video(tmp_path, holder=1.0, holder_look=1.0)
+    track_video(folder, tmp_path / "out", um_per_px=1.0)
+    t = pd.read_csv(tmp_path / "out" / "tracks.csv")
+    assert (t.status == "ok").all()
+    assert np.hypot(t.base_x_um - BASE.real, t.base_y_um - BASE.imag).max() < 1.5
+    assert np.abs(t.length_um / LENGTH - 1).max() < 0.01
+    assert np.abs(t.bend_angle_deg - bends).max() < 0.5
+    run = json.loads((tmp_path / "out" / "run.json").read_text())
+    assert any("leave its line there as a tube clamped there would" in n
+               for n in run["left_out_and_why"])
+    # the profiles alone do not tell it: without the hinge it runs on to the border
+    monkeypatch.setattr(pipette, "MIN_HINGE_GAIN", np.inf)
+    track_video(folder, tmp_path / "kept", um_per_px=1.0)
+    kept = pd.read_csv(tmp_path / "kept" / "tracks.csv")
+    assert kept.length_um.min() > LENGTH + 150
+
+
+def _clamped_tracks(s0: float, turns, noise: float = 0.0, stiff: float = 0.0):
+    """Frames of a tube lying straight along +x for ``s0`` px from the origin
+    (or bending there at ``stiff`` times the rest's curvature), then bending at
+    steady curvature over 300 px (its end turned ``turns``, rad), with
+    ``noise`` rad on its tangent angle: FrameTracks."""
+    from pipeline.centreline import basis_of, make_basis
+    from pipeline.track import FrameTrack
+
+    length = s0 + 300.0
+    n = 40
+    basis = make_basis(n, basis_of(Curve(0j, 0.0, length, np.zeros(n))).n_grid)
+    s = basis.u * length
+    rng = np.random.default_rng(1)
+    out = []
+    for turn in turns:
+        phi = (turn / 300.0 * (np.clip(s - s0, 0.0, None) + stiff * np.minimum(s, s0))
+               + noise * rng.normal(size=s.size))
+        coef, *_ = np.linalg.lstsq(basis.values, phi, rcond=None)
+        curve = Curve(0j, 0.0, length, coef)
+        out.append(FrameTrack(frame=len(out), status="ok", curve=curve, stage="fast"))
+    return out
+
+
+@pytest.mark.parametrize("s0", [0.0, 60.0, 150.0])
+def test_the_hinge_is_where_a_clamped_tube_starts_to_bend(s0):
+    results = _clamped_tracks(s0, [0.0, 0.5, 1.0, 2.0, 3.0], noise=1e-3)
+    at, gain, spread = pipette.motion_hinge(results, 5.0, s0 + 40.0)
+    assert at == pytest.approx(s0, abs=2.0)
+    assert spread <= pipette.HINGE_SPREAD_PX
+    if s0 > 0:
+        assert gain > pipette.MIN_HINGE_GAIN
+    else:
+        assert gain == pytest.approx(0.0, abs=1e-6)
+    # frames bent less than MIN_BEND_DEG tell nothing; two bent ones no spread
+    assert pipette.motion_hinge(results[:2], 5.0, s0 + 40.0) == (0.0, 0.0, np.inf)
+    assert pipette.motion_hinge(results[:4], 5.0, s0 + 40.0)[2] == np.inf
+
+
+def test_a_stiff_first_section_is_no_hinge():
+    # the tube's own first 60 px, bending at 1/25 of the rest's curvature: it
+    # seems to end earlier the more the tube bends
+    results = _clamped_tracks(60.0, [0.0, 0.5, 1.0, 2.0, 3.0], stiff=0.04)
+    _, _, spread = pipette.motion_hinge(results, 5.0, 100.0)
+    assert spread > 2 * pipette.HINGE_SPREAD_PX
 
 
 def test_a_tube_starting_at_the_border_is_not_cut(tmp_path):
