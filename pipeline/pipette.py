@@ -46,6 +46,10 @@ STILL_PX = 1.0
 MIN_WIDTHS = 2.0
 #: The tube beyond it must keep at least this share of the length tracked.
 MIN_TUBE_SHARE = 0.4
+#: A frame's tube beyond the holder's end must be within this share of the
+#: first frame's (an inflated tube lengthens by a few %: 1.2 % at most over 232
+#: rendered scenes); else that frame found something else beyond the holder.
+LENGTH_OFF = 0.3
 #: The step in the profiles, at least: the mean squared difference of the two
 #: stretches' mean profiles over the profiles' scatter about those means (a
 #: tube's profiles along a stretch of one look: under 0.2; glass or a band to
@@ -78,6 +82,8 @@ HINGE_SPREAD_PX = 2.0
 MIN_HINGE_FRAMES = 3
 #: Status of a frame whose centreline does not pass where the holder ends.
 OFF_HOLDER = "lost: the tube's start not found at the holder's end"
+#: ... and of one whose tube beyond it is far from the first frame's length.
+OFF_LENGTH = "lost: the tube beyond the holder far from its length on the first frame"
 
 
 def static_stretch(results: list[FrameTrack], half_width: float, at_least: float = 0.0
@@ -284,7 +290,9 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
     results : list of FrameTrack
         The same frames, their curves (and fits) cut where the tube leaves the
         holder, their base tangent the holder's axis; a frame whose centreline
-        does not pass the holder's end is marked :data:`OFF_HOLDER`.
+        does not pass the holder's end is marked :data:`OFF_HOLDER`, one whose
+        tube beyond it is more than :data:`LENGTH_OFF` off the first frame's
+        length :data:`OFF_LENGTH`.
     note : str or None
         A line for the run's notes when a holder was cut off.
     """
@@ -308,6 +316,7 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
     end = complex(np.interp(s, arc, z.real), np.interp(s, arc, z.imag))
     axis = axis_angle(first, s)
     tol = max(2.0, 0.5 * half_width)
+    tube = first.length - s
     out = []
     for r in results:
         if not r.ok:
@@ -317,8 +326,11 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
         arc, z, _, _ = _sampled(r.curve, 0.25)
         k = int(np.argmin(np.abs(z - end)))
         at = float(arc[k])
-        if abs(z[k] - end) > tol or r.curve.length - at < MIN_TUBE_SHARE * (first.length - s):
-            out.append(replace(r, status=OFF_HOLDER, curve=None, fit=None, last_section=None))
+        missed = (OFF_HOLDER if abs(z[k] - end) > tol
+                  else OFF_LENGTH if abs((r.curve.length - at) / tube - 1) > LENGTH_OFF
+                  else None)
+        if missed:
+            out.append(replace(r, status=missed, curve=None, fit=None, last_section=None))
             continue
         # (the fit shares the curve's base: cut at the same arc length; the
         # last section's record describes the uncut spline, and goes)

@@ -1,6 +1,7 @@
 """A holder taken for the tube's base stretch is cut off, told by the video."""
 
 import json
+from dataclasses import replace
 
 import cv2
 import numpy as np
@@ -80,22 +81,23 @@ def test_a_holder_of_the_tube_s_own_look_is_cut_where_the_bending_starts(tmp_pat
     assert kept.length_um.min() > LENGTH + 150
 
 
-def _clamped_tracks(s0: float, turns, noise: float = 0.0, stiff: float = 0.0):
+def _clamped_tracks(s0: float, turns, noise: float = 0.0, stiff: float = 0.0,
+                    tube: float = 300.0):
     """Frames of a tube lying straight along +x for ``s0`` px from the origin
     (or bending there at ``stiff`` times the rest's curvature), then bending at
-    steady curvature over 300 px (its end turned ``turns``, rad), with
+    steady curvature over ``tube`` px (its end turned ``turns``, rad), with
     ``noise`` rad on its tangent angle: FrameTracks."""
     from pipeline.centreline import basis_of, make_basis
     from pipeline.track import FrameTrack
 
-    length = s0 + 300.0
+    length = s0 + tube
     n = 40
     basis = make_basis(n, basis_of(Curve(0j, 0.0, length, np.zeros(n))).n_grid)
     s = basis.u * length
     rng = np.random.default_rng(1)
     out = []
     for turn in turns:
-        phi = (turn / 300.0 * (np.clip(s - s0, 0.0, None) + stiff * np.minimum(s, s0))
+        phi = (turn / tube * (np.clip(s - s0, 0.0, None) + stiff * np.minimum(s, s0))
                + noise * rng.normal(size=s.size))
         coef, *_ = np.linalg.lstsq(basis.values, phi, rcond=None)
         curve = Curve(0j, 0.0, length, coef)
@@ -218,3 +220,15 @@ def test_the_profiles_change_where_the_holder_ends(holder, changes):
     assert (change >= pipette.MIN_CHANGE) == changes
     if changes:
         assert s == pytest.approx(abs(start - BASE), abs=2.0)
+
+
+def test_a_frame_far_from_the_first_frame_s_length_beyond_the_holder_is_lost():
+    # a frame restarted on the holder and part of the tube: it passes the
+    # holder's end, but the tube beyond it is 45 % of the first frame's
+    results = _clamped_tracks(60.0, [0.0, 0.5, 1.0, 2.0, 3.0], noise=1e-3)
+    short = _clamped_tracks(60.0, [3.0], noise=1e-3, tube=135.0)[0]
+    results.append(replace(short, frame=len(results)))
+    out, note = pipette.drop_holder(results, lambda: np.full((400, 500), 0.5, np.float32), 5.0)
+    assert note is not None and "clamped" in note
+    assert [r.status for r in out] == ["ok"] * 5 + [pipette.OFF_LENGTH]
+    assert all(abs(r.curve.length - 300.0) < 2.0 for r in out[:5])
