@@ -86,6 +86,14 @@ OFF_HOLDER = "lost: the tube's start not found at the holder's end"
 OFF_LENGTH = "lost: the tube beyond the holder far from its length on the first frame"
 
 
+def _first_and_bent(results: list[FrameTrack]) -> tuple[Curve | None, list[FrameTrack]]:
+    """The first ok frame's curve, and the later ok frames bent at least
+    :data:`MIN_BEND_DEG`."""
+    ok = [r for r in results if r.ok]
+    bent = [r for r in ok[1:] if abs(np.degrees(r.bend_angle_rad)) >= MIN_BEND_DEG]
+    return (ok[0].curve if ok else None), bent
+
+
 def static_stretch(results: list[FrameTrack], half_width: float, at_least: float = 0.0
                    ) -> float:
     """Arc length from the tracked base (px) over which every ok frame bent by at
@@ -93,11 +101,10 @@ def static_stretch(results: list[FrameTrack], half_width: float, at_least: float
     no frame bent that far. Looked at only until it falls below ``at_least``."""
     from scipy.spatial import cKDTree
 
-    ok = [r for r in results if r.ok]
-    bent = [r for r in ok[1:] if abs(np.degrees(r.bend_angle_rad)) >= MIN_BEND_DEG]
+    first, bent = _first_and_bent(results)
     if not bent:
         return 0.0
-    _, ref = resample(ok[0].curve, 0.5)
+    _, ref = resample(first, 0.5)
     tree = cKDTree(np.c_[ref.real, ref.imag])
     tol = max(STILL_PX, 0.2 * half_width)
     still = np.inf
@@ -146,11 +153,10 @@ def motion_hinge(results: list[FrameTrack], half_width: float, upto: float
     """
     from scipy.spatial import cKDTree
 
-    ok = [r for r in results if r.ok]
-    bent = [r for r in ok[1:] if abs(np.degrees(r.bend_angle_rad)) >= MIN_BEND_DEG]
+    first, bent = _first_and_bent(results)
     if not bent or upto <= 0:
         return 0.0, 0.0, np.inf
-    arc, ref, _, normal = _sampled(ok[0].curve, 0.25)
+    arc, ref, _, normal = _sampled(first, 0.25)
     tree = cKDTree(np.c_[ref.real, ref.imag])
     grid = np.arange(0.0, upto + 0.25, 0.5)
     span = max(HINGE_SPAN_PX, 0.5 * half_width)

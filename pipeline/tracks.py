@@ -401,10 +401,9 @@ def _stood_still(frames, results, det):
 def _without_holder(frames, results, det, base_hint, px):
     """:func:`pipeline.pipette.drop_holder`, where the base is not given (a
     narrower pipette's width step may be a step along the holder itself)."""
-    if det is None or base_hint is not None or not results or not results[0].ok:
+    if det is None or base_hint is not None:
         return results, None
-    out, note = drop_holder(results, lambda: as_float(next(iter(frames))), det.half_width, px)
-    return out, note
+    return drop_holder(results, lambda: as_float(next(iter(frames))), det.half_width, px)
 
 
 def _static_end(reader, det):
