@@ -45,6 +45,20 @@ STRIP_HALF_PX = 1.0
 #: A sealed tube's plug, where the lumen that pulls the body's midpoints off
 #: its axis has ended, is 1.3-1.7 half-widths long behind a round cap.
 END_STEP_ZONES_HW = tuple(np.arange(0.5, 3.01, 0.25))
+#: A told stretch's side edges are left out of the fits where it is at most
+#: this share of the last section (the whole tube, without joints): the tip's
+#: direction is then the continuation of an arc at least three times as long.
+#: A longer one keeps them, with a sideways offset of its own: left out, it
+#: had taken the last section's bend with it (sample 1's last 38 px, 24 of
+#: them told: 0.1 -> 2.3 deg).
+END_STEP_LEAVE_OUT = 0.25
+#: ... and where its offset is at most this, px: an off-centre lumen's, under
+#: blur, is a fraction of a pixel (0.09-0.28 on the 5 of 182 evaluation
+#: scenes that told one, 0.09-0.36 on 9 of the independent renderer's 30). A
+#: larger one is a bend the fit misses (a joint
+#: not found yet: -1.16 px over 37 px, whose edges left out let the tip turn
+#: 25 deg away), which the stretch's edges must go on holding.
+END_STEP_LEAVE_OUT_MAX_PX = 0.5
 #: Where a tube's end face pulls its side edges off the rest's line
 #: (:attr:`TubeLook.end_clear`), the profiles stop this many half-widths short
 #: of its end (2 px otherwise), and :attr:`Refined.end_offset` is measured over
@@ -181,9 +195,15 @@ class TubeLook:
         edge midpoints off its axis by a fraction of a pixel all along the
         lumen, under blur; past the lumen's end (a sealed tip's plug) they
         come back to it, and a fit that followed them turned the tip tangent
-        1-4 deg. Fits give the stretch a sideways offset of its own, free on
-        each frame: its profiles then hold the tip's direction and bend, not
-        its place across the tube.
+        1-4 deg. Fits leave the stretch's side edges out
+        (:func:`end_step_left_out`): the tip's direction is then the
+        continuation of the arc before it. A sideways offset of the stretch's
+        own, free on each frame, is the fallback where the stretch is too
+        much of the last section: under blur the midpoints come back over a
+        ramp as long as the stretch, and its slope still turns the tip
+        (independent renderer: 3.0 deg median on a tube 7 px wide, 0.8 with
+        the stretch left out; three tubes 9-15 px wide from 0.8-1.5 to
+        0.1-0.5 deg).
     end_step_offset : float
         How far the stretch's midpoints sat off the rest's line on the frames
         that told it, px (along the curve's left normal): reported only (a
@@ -580,8 +600,12 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
         a_rows = [rows * weights[:, None]]
         b_rows = [delta * weights]
         if look.end_step_px:
-            a_rows[0], b_rows[0] = _own_offset(a_rows[0], b_rows[0], weights,
-                                               (1.0 - u) * curve.length < look.end_step_px)
+            zone = (1.0 - u) * curve.length < look.end_step_px
+            if end_step_left_out(curve, look.end_step_px, look.end_step_offset):
+                a_rows[0] = a_rows[0] * ~zone[:, None]
+                b_rows[0] = b_rows[0] * ~zone
+            else:
+                a_rows[0], b_rows[0] = _own_offset(a_rows[0], b_rows[0], weights, zone)
         tip_found = False
         if fit_length:
             tip_off, tip_found = _tip_offset(image, smp, shift, look, window, step,
@@ -698,6 +722,19 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
                & (-at.imag >= reach) & (-at.imag <= image.shape[0] - 1 - reach))
     return Refined(curve, u, width, edges.valid, rms, tip_found, it, strength, ~dropped, mids,
                    tip_correction, noise, last_section, end_offset, end_steps, in_view=in_view)
+
+
+def end_step_left_out(curve: Curve, step_px: float, offset_px: float) -> bool:
+    """Whether a fit of ``curve`` leaves out the side edges of the told
+    stretch of ``step_px`` at its end, whose midpoints sat ``offset_px`` off
+    the rest's line (:attr:`TubeLook.end_step_px`, ``end_step_offset``),
+    rather than give them a sideways offset of their own: where the stretch
+    is at most :data:`END_STEP_LEAVE_OUT` of the last section (the whole
+    tube, on a curve without joints) and its offset a lumen's, at most
+    :data:`END_STEP_LEAVE_OUT_MAX_PX`."""
+    last = 1.0 - (curve.joints[-1] if curve.joints else 0.0)
+    return (0.0 < step_px <= END_STEP_LEAVE_OUT * last * curve.length
+            and abs(offset_px) <= END_STEP_LEAVE_OUT_MAX_PX)
 
 
 def _own_offset(a_w, b_w, weights, zone):

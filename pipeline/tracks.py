@@ -24,7 +24,7 @@ from .centreline import Curve, resample, tip_point
 from .field import Field, field_stop
 from .margins import Margins, blank_margins
 from .pipette import drop_holder
-from .refine import END_CLEAR_HW
+from .refine import END_CLEAR_HW, END_STEP_LEAVE_OUT, END_STEP_LEAVE_OUT_MAX_PX, end_step_left_out
 from .segment import AMBIGUOUS_BASE, detect
 from .track import (
     EDGE_SCALES,
@@ -502,18 +502,25 @@ def _look_note(results) -> str:
 
 
 def _end_step_note(results) -> str | None:
-    """Whether a dark tube's end was given a sideways offset of its own, and
-    why (None where it was not looked for)."""
+    """Whether a dark tube's end stepped sideways off the rest's line, and
+    what the fits did about it (None where it was not looked for)."""
     told = [r for r in results if r.ok and r.end_step is not None]
     if told:
         px, offset = told[0].end_step
-        return (f"the last {px:.1f} px of the tube given a sideways offset of their own in the "
-                f"fits from frame {told[0].frame} on: their edge midpoints sat {offset:+.2f} px "
-                "off the line the rest of the tube's give, steadily (a sealed end past an "
-                "off-centre lumen); they hold the tip's direction, not its place across the tube")
+        out = sum(end_step_left_out(r.curve, *r.end_step) for r in told)
+        how = (f"their side edges left out of the fits on {out} of {len(told)} frames (the "
+               "tip's direction is the arc's before them)")
+        if out < len(told):
+            how += (f", given a sideways offset of their own on the other {len(told) - out} "
+                    f"(the stretch over {END_STEP_LEAVE_OUT:.0%} of the last section, or "
+                    f"its offset over {END_STEP_LEAVE_OUT_MAX_PX} px: a bend, not a lumen's end)")
+        return (f"the last {px:.1f} px of the tube stepped sideways from frame "
+                f"{told[0].frame} on: their edge midpoints sat {offset:+.2f} px off the line "
+                f"the rest of the tube's give, steadily (a sealed end past an off-centre "
+                f"lumen); {how}")
     if any(r.ok and r.end_steps is not None for r in results):
-        return ("the tube's end given no sideways offset of its own: its edge midpoints sat "
-                "on the line the rest of the tube's give")
+        return ("the tube's end did not step sideways: its edge midpoints sat on the line "
+                "the rest of the tube's give")
     return None
 
 

@@ -1,11 +1,19 @@
 """A dark tube's end whose edge midpoints step sideways off the rest's line
 (a sealed tip past an off-centre lumen): measured, told over the frames, and
-given a sideways offset of its own."""
+its side edges left out of the fits, or given an offset of their own."""
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from pipeline.centreline import fit_to_polyline
-from pipeline.refine import END_STEP_ZONES_HW, TubeLook, _own_offset, refine
+from pipeline.refine import (
+    END_STEP_ZONES_HW,
+    TubeLook,
+    _own_offset,
+    end_step_left_out,
+    refine,
+)
 from pipeline.track import END_STEP_MAX_FRAMES, END_VOTE_FRAMES, FrameTrack, _EndStepVotes
 from pipeline.tracks import _end_step_note
 from tests.pipeline.synthetic import arc_axis, tube_image
@@ -17,13 +25,15 @@ HW = 8.0
 STEP_PX = 12.0  # 1.5 half-widths
 
 
-def _stepped_tube(shift: float, noise: float = 0.0):
-    """A dark straight tube along +x whose last ``STEP_PX`` sit ``shift`` px to its left."""
+def _stepped_tube(shift: float, noise: float = 0.0, ramp_px: float = 0.0):
+    """A dark straight tube along +x whose last ``STEP_PX`` sit ``shift`` px to
+    its left, reached over ``ramp_px`` (a blurred lumen's end) or at once."""
     kw = dict(polarity=-1, noise=noise, seed=3)
     body = tube_image(SHAPE, BASE, 0.0, LENGTH, 0.0, HW, **kw)
     end = tube_image(SHAPE, BASE + 1j * shift, 0.0, LENGTH, 0.0, HW, **kw)
-    cols = np.arange(SHAPE[1])[None, :]
-    return np.where(cols >= BASE.real + LENGTH - STEP_PX, end, body).astype(np.float32)
+    past = np.arange(SHAPE[1])[None, :] - (BASE.real + LENGTH - STEP_PX)
+    share = np.clip(past / ramp_px, 0.0, 1.0) if ramp_px else (past >= 0)
+    return (share * end + (1.0 - share) * body).astype(np.float32)
 
 
 def _truth():
@@ -53,26 +63,27 @@ def test_the_end_steps_are_how_far_the_ends_midpoints_sit_off_the_rests_line(shi
     assert refine(1.0 - _stepped_tube(shift), _truth(), bright, iterations=2).end_steps is None
 
 
-def _told(shift: float) -> TubeLook:
+def _told(shift: float, ramp_px: float = 0.0) -> TubeLook:
     """The look the first frames' votes give, on noisy frames of the stepped tube."""
     votes, look = _EndStepVotes(), _look(None)
     for k in range(END_VOTE_FRAMES):
-        img = _stepped_tube(shift, noise=0.01)
+        img = _stepped_tube(shift, noise=0.01, ramp_px=ramp_px)
         img = img + np.random.default_rng(k).normal(0.0, 0.01, img.shape).astype(np.float32)
         look = votes.add(refine(img, _truth(), look, iterations=8).end_steps, look)
     return look
 
 
-def test_a_told_step_keeps_the_tip_tangent_on_the_rests_line():
-    look = _told(0.4)
-    assert STEP_PX <= look.end_step_px <= STEP_PX + HW
-    img = _stepped_tube(0.4, noise=0.01)
+@pytest.mark.parametrize("ramp_px", [0.0, 0.5 * STEP_PX])
+def test_a_told_step_keeps_the_tip_tangent_on_the_rests_line(ramp_px):
+    look = _told(0.4, ramp_px)
+    assert STEP_PX - ramp_px <= look.end_step_px <= STEP_PX + HW
+    img = _stepped_tube(0.4, noise=0.01, ramp_px=ramp_px)
     followed = refine(img, _truth(), _look(0.0), iterations=8, tol_px=0.005)
-    own = refine(img, _truth(), look, iterations=8, tol_px=0.005)
+    told = refine(img, _truth(), look, iterations=8, tol_px=0.005)
     # the truth's tip tangent is the rest's: 0 (the end is shifted, not turned)
     tip_followed = abs(np.degrees(followed.curve.coef[-1]))
     assert tip_followed > 0.8
-    assert abs(np.degrees(own.curve.coef[-1])) < 0.25 * tip_followed
+    assert abs(np.degrees(told.curve.coef[-1])) < 0.25 * tip_followed
     # a tube without a step is told none
     assert _told(0.0).end_step_px is None
 
@@ -91,6 +102,19 @@ def test_the_own_offset_is_the_least_squares_with_an_extra_unknown():
     np.testing.assert_array_equal(a_o[~zone], a_w[~zone])
     a_n, b_n = _own_offset(a_w, b_w, weights, np.zeros(30, bool))
     np.testing.assert_array_equal(a_n, a_w)
+
+
+def test_a_stretch_is_left_out_only_where_short_and_small_against_the_last_section():
+    curve = _truth()  # 400 px, no joints
+    assert end_step_left_out(curve, 12.0, 0.3)
+    assert end_step_left_out(curve, 100.0, -0.5)
+    assert not end_step_left_out(curve, 101.0, 0.3)  # over a quarter of the tube
+    assert not end_step_left_out(curve, 12.0, 0.6)  # a bend the fit misses
+    assert not end_step_left_out(curve, 0.0, 0.0)  # none told
+    # with a joint at 0.9 the last section is 40 px
+    jointed = fit_to_polyline(arc_axis(BASE, 0.0, LENGTH, 0.0)[0], 0.0, n_coef=12,
+                              joints=(0.9,))
+    assert end_step_left_out(jointed, 9.0, 0.3) and not end_step_left_out(jointed, 11.0, 0.3)
 
 
 def _steps(offsets, weight=6.0, se=0.02):
@@ -127,14 +151,18 @@ def test_a_steady_step_is_told_and_scatter_or_a_growing_misfit_is_not():
     assert not look.end_step_px
 
 
-def test_the_run_notes_say_whether_the_end_was_given_its_own_offset():
+def test_the_run_notes_say_whether_the_ends_side_edges_were_left_out():
     curve = _truth()
     told = [FrameTrack(k, "ok", curve, "fast", end_step=(12.0, 0.31) if k >= 4 else None,
                        end_steps=_steps(np.zeros(3)) if k < 4 else None) for k in range(6)]
     note = _end_step_note(told)
-    assert note.startswith("the last 12.0 px of the tube given a sideways offset") and (
-        "from frame 4 on" in note and "+0.31 px" in note)
+    assert note.startswith("the last 12.0 px of the tube stepped sideways") and (
+        "from frame 4 on" in note and "+0.31 px" in note
+        and "left out of the fits on 2 of 2 frames" in note and "the other" not in note)
+    big = [replace(r, end_step=(12.0, 0.8)) if r.end_step else r for r in told]
+    assert "left out of the fits on 0 of 2 frames" in _end_step_note(big)
+    assert "offset of their own on the other 2" in _end_step_note(big)
     looked = [FrameTrack(k, "ok", curve, "fast", end_steps=_steps(np.zeros(3))) for k in range(3)]
-    assert _end_step_note(looked).startswith("the tube's end given no sideways offset")
+    assert _end_step_note(looked).startswith("the tube's end did not step sideways")
     # a bright tube's end is not looked at this way: no note
     assert _end_step_note([FrameTrack(0, "ok", curve, "fast")]) is None
