@@ -510,14 +510,17 @@ def _end_step_note(results) -> str | None:
         out = sum(end_step_left_out(r.curve, *r.end_step) for r in told)
         how = (f"their side edges left out of the fits on {out} of {len(told)} frames (the "
                "tip's direction is the arc's before them)")
+        lumen = abs(offset) <= END_STEP_LEAVE_OUT_MAX_PX
         if out < len(told):
+            why = (f"the stretch over {END_STEP_LEAVE_OUT:.0%} of the last section" if lumen
+                   else f"the offset over {END_STEP_LEAVE_OUT_MAX_PX} px")
             how += (f", given a sideways offset of their own on the other {len(told) - out} "
-                    f"(the stretch over {END_STEP_LEAVE_OUT:.0%} of the last section, or "
-                    f"its offset over {END_STEP_LEAVE_OUT_MAX_PX} px: a bend, not a lumen's end)")
+                    f"({why}: left out, they would take the bend there with them)")
+        cause = ("a sealed end past an off-centre lumen" if lumen
+                 else "too far for an off-centre lumen's end: a bend the fits miss")
         return (f"the last {px:.1f} px of the tube stepped sideways from frame "
                 f"{told[0].frame} on: their edge midpoints sat {offset:+.2f} px off the line "
-                f"the rest of the tube's give, steadily (a sealed end past an off-centre "
-                f"lumen); {how}")
+                f"the rest of the tube's give, steadily ({cause}); {how}")
     if any(r.ok and r.end_steps is not None for r in results):
         return ("the tube's end did not step sideways: its edge midpoints sat on the line "
                 "the rest of the tube's give")

@@ -160,8 +160,14 @@ def test_the_run_notes_say_whether_the_ends_side_edges_were_left_out():
         "from frame 4 on" in note and "+0.31 px" in note
         and "left out of the fits on 2 of 2 frames" in note and "the other" not in note)
     big = [replace(r, end_step=(12.0, 0.8)) if r.end_step else r for r in told]
-    assert "left out of the fits on 0 of 2 frames" in _end_step_note(big)
-    assert "offset of their own on the other 2" in _end_step_note(big)
+    note = _end_step_note(big)
+    assert "left out of the fits on 0 of 2 frames" in note and "a bend the fits miss" in note
+    assert "offset of their own on the other 2 (the offset over 0.5 px" in note
+    # a stretch too long against the last section: a lumen's, but kept in
+    short = replace(curve, length=40.0)
+    long_ = [replace(r, curve=short) for r in told]
+    note = _end_step_note(long_)
+    assert "off-centre lumen" in note and "on the other 2 (the stretch over 25%" in note
     looked = [FrameTrack(k, "ok", curve, "fast", end_steps=_steps(np.zeros(3))) for k in range(3)]
     assert _end_step_note(looked).startswith("the tube's end did not step sideways")
     # a bright tube's end is not looked at this way: no note
