@@ -556,6 +556,7 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
     for it in range(1, iterations + 1):  # noqa: B007 (it is reported)
         smp = evaluate(curve, basis)
         normals = smp.normal[idx]
+        from_end = (1.0 - u) * curve.length  # each profile's distance from the end, px
         profiles = sample_strips(image, smp.z[idx] - shift, normals, offsets, strips)
         facing, shown = look.facing(normals)
         edges = edge_pairs(profiles, step, hw_u, polarity=look.polarity, window=window,
@@ -600,7 +601,7 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
         a_rows = [rows * weights[:, None]]
         b_rows = [delta * weights]
         if look.end_step_px:
-            zone = (1.0 - u) * curve.length < look.end_step_px
+            zone = from_end < look.end_step_px
             if end_step_left_out(curve, look.end_step_px, look.end_step_offset):
                 a_rows[0] = a_rows[0] * ~zone[:, None]
                 b_rows[0] = b_rows[0] * ~zone
@@ -667,9 +668,8 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
             system, step_rep = lhs + np.diag(damp), step_x
             if look.end_in_question:
                 end_offset = _end_offset(a_mat, b_vec, weights, lhs, rhs, damp,
-                                         (1.0 - u) * curve.length < END_CLEAR_HW * hw)
+                                         from_end < END_CLEAR_HW * hw)
             if look.end_step_in_question:
-                from_end = (1.0 - u) * curve.length
                 end_steps = np.array([
                     (_end_offset(a_mat, b_vec, weights, lhs, rhs, damp, near),
                      weights[near].sum(), np.sqrt(var / max(weights[near].sum(), 1e-9)))
