@@ -80,13 +80,14 @@ class Binning:
 
     def track_back(self, track):
         """A :class:`pipeline.track.FrameTrack` of the binned frames in the frame's
-        own pixels: its curves and its residuals (the edge profiles' smoothing,
+        own pixels: its curves, its residuals and its half-width (the edge profiles' smoothing,
         a setting of the search, stays in the binned frames' pixels)."""
         if self.factor == 1:
             return track
         d = self.factor
         return replace(track, curve=self.curve_back(track.curve),
                        fit=self.curve_back(track.fit), residual_px=d * track.residual_px,
+                       half_width_px=d * track.half_width_px,
                        end_offset=d * track.end_offset,
                        end_steps=(None if track.end_steps is None
                                   else track.end_steps * np.array([d, 1.0, d])),

@@ -328,6 +328,9 @@ class FrameTrack:
     smooth_px : float
         The edge profiles' smoothing chosen (:func:`edge_scale`), px, on
         frames that (re)started the tracker; NaN on the others.
+    half_width_px : float
+        The tube's mean half-width as the look learnt it, px, on frames that
+        (re)started the tracker; NaN on the others.
     crossing : bool
         The predicted tube touched or crossed itself, so the profiles near
         the contact were left out.
@@ -368,6 +371,7 @@ class FrameTrack:
     work_fraction: float = 1.0
     base_source: str = ""
     smooth_px: float = float("nan")
+    half_width_px: float = float("nan")
     crossing: bool = False
     polarity: int | None = None
     shear_deg: float = float("nan")
@@ -1170,7 +1174,8 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
                 widths.joints = r.curve.joints
         return (FrameTrack(index, status, _reported(r) if status == "ok" else None, "init",
                            r.residual_px, r.valid_fraction, base_source=source,
-                           smooth_px=look.smooth_px, polarity=look.polarity,
+                           smooth_px=look.smooth_px, half_width_px=look.mean_half_width,
+                           polarity=look.polarity,
                            fit=r.curve if status == "ok" else None,
                            last_section=r.last_section if status == "ok" else None,
                            end_offset=r.end_offset, end_steps=r.end_steps), look)

@@ -12,6 +12,7 @@ from __future__ import annotations
 import time
 from collections import Counter
 from dataclasses import asdict, dataclass, replace
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -24,8 +25,14 @@ from .centreline import Curve, resample, tip_point
 from .field import Field, field_stop
 from .margins import Margins, blank_margins
 from .pipette import drop_holder
-from .refine import END_CLEAR_HW, END_STEP_LEAVE_OUT, END_STEP_LEAVE_OUT_MAX_PX, end_step_left_out
+from .refine import (
+    END_CLEAR_HW,
+    END_STEP_LEAVE_OUT,
+    END_STEP_LEAVE_OUT_MAX_PX,
+    end_step_left_out,
+)
 from .segment import AMBIGUOUS_BASE, detect
+from .static_mask import MARGIN_PX, static_mask
 from .track import (
     EDGE_SCALES,
     JOINT_CHECK_DEG,
@@ -253,7 +260,14 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
         results = list(track_frames(iter(frames), base_hint=base_hint, base_end=base_end,
                                     first_detection=first_det, progress=tick,
                                     settings=settings, joints=joints))
-        results, still_note = _stood_still(frames, results, first_det)
+        results, still_note, still = _stood_still(frames, results, first_det)
+        if still is not None:
+            # the tube may be there all the same, fainter than what stood still
+            found = _past_still(frames, still, base_hint, settings, joints)
+            if isinstance(found, str):
+                still_note = f"{still_note}; {found}"
+            else:
+                frames, results, first_det, still_note = found
         results, holder_note = _without_holder(frames, results, first_det, base_hint,
                                                binning.factor)
         if holder_note and joints is not None:
@@ -371,7 +385,8 @@ NOT_THE_TUBE = ("the structure tracked stood still while another one moved (a fi
 
 def _stood_still(frames, results, det):
     """The frames, not measured if what was tracked stood still while the scene
-    moved elsewhere; and a note then (else None).
+    moved elsewhere; a note then (else None); and what stood still, as
+    ``(curve, half_width)`` px (else None).
 
     A fibre, a scratch or a chamber's edge in the frame can be longer and
     stand out more than the tube, and be taken for it: its angle is then no
@@ -383,19 +398,120 @@ def _stood_still(frames, results, det):
 
     ok = [r for r in results if r.ok]
     if det is None or len(results) < 3 or len(ok) < 2:
-        return results, None
+        return results, None, None
     tips = np.array([tip_point(r.curve) for r in ok])
     if np.abs(tips - tips[0]).max() > max(2.0, STILL_HALF_WIDTHS * det.half_width):
-        return results, None
+        return results, None, None
     _, z = resample(ok[0].curve)
     share = moved_elsewhere(iter(frames), np.c_[-z.imag, z.real], det.half_width)
     if share < MOVED_ELSEWHERE:
-        return results, None
+        return results, None, None
     marked = [replace(r, status=NOT_THE_TUBE, curve=None, fit=None, last_section=None)
               if r.ok else r for r in results]
+    # its width as the tracker learnt it where it started on it (the first
+    # frame's detection may have been the tube itself)
+    widths = [r.half_width_px for r in results if np.isfinite(r.half_width_px)]
+    half_width = float(np.median(widths)) if widths else det.half_width
     return marked, (f"the structure tracked stood still over the video, while {share:.1f}x "
                     "its area moved elsewhere (another structure bent there: the tube?): "
-                    "its frames are not measured")
+                    "its frames are not measured"), (ok[0].tracked, half_width)
+
+
+#: A tube found past a hidden structure whose end lies within this many of
+#: the tube's half-widths of the structure's free end (beyond the mask's
+#: margin) starts there: the structure holds it.
+HELD_AT_END_HW = 3.0
+
+
+def _past_still(frames, still, base_hint, settings, joints):
+    """The video tracked again with the structure that stood still hidden
+    (:mod:`pipeline.static_mask`): a faint tube next to a holder, a fibre or a
+    scratch that stands out more.
+
+    ``still`` is ``(curve, half_width)`` from :func:`_stood_still`. What is
+    found past it may stand still too (the rest of a fibre the first track
+    followed only part of): it is hidden as well, up to :data:`HIDDEN_MAX`
+    structures in all. Returns ``(frames, results, detection, note)``, the
+    frames being the hidden ones; or, where no tube is found past them that
+    can be measured, a line saying why.
+    """
+    view = next(iter(frames))
+    hides = []
+    while len(hides) < HIDDEN_MAX:
+        hides.append(static_mask(*still, view.shape[:2]))
+        hidden = _Mapped(frames, partial(_hidden, hides))
+        image = as_float(_hidden(hides, view))
+        det, base_end, held = _found_past(hidden, image, hides[0], base_hint)
+        if det is None:
+            return "with it hidden, no tube was found past it"
+        results = list(track_frames(iter(hidden), base_hint=base_hint, base_end=base_end,
+                                    first_detection=det, settings=settings, joints=joints))
+        results, again, still = _stood_still(hidden, results, det)
+        if again is None:
+            break
+    else:
+        return f"with it hidden, what was found next stood still too ({HIDDEN_MAX} hidden)"
+    lengths = np.array([r.curve.length for r in results if r.ok])
+    if lengths.size == 0:
+        return "with it hidden, the tube found past it could not be measured on any frame"
+    if _jitter(lengths) > HIDDEN_LENGTH_JITTER:
+        return (f"with it hidden, a tube was found past it, but its length jumped by "
+                f"{_jitter(lengths):.1%} from frame to frame (its end not found): not measured")
+    widths = ", ".join(f"{2 * h.half_width:.0f}" for h in hides)
+    return hidden, results, det, (
+        f"{len(hides)} structure(s) ({widths} px wide) stood still over the video where the "
+        "tube was looked for, while the scene moved elsewhere: hidden (their pixels replaced "
+        "by the background about them) and the tube tracked again past them"
+        + ("; the tube starts at the first one's end (a holder)" if held else ""))
+
+
+#: Structures that stood still hidden at most, before the tube is given up.
+HIDDEN_MAX = 2
+#: The tube tracked past hidden structures is kept only where its length
+#: changes from one measured frame to the next by at most this share, in the
+#: median. What stood out more than the tube leaves a faint tube, whose end a
+#: fit may follow into the background: an independent-renderer scene (a holder
+#: 93 px wide, a tube at 6 % contrast) came out with its length jumping by
+#: 3.8 % per frame and every angle from its third frame on wrong, where a tube
+#: tracked as it should keeps its length to 1 % overall (one that grows as it
+#: is inflated changes it smoothly, by a fraction of that per frame).
+HIDDEN_LENGTH_JITTER = 0.01
+
+
+def _jitter(lengths: np.ndarray) -> float:
+    """The median change of ``lengths`` from one to the next, over their median."""
+    if lengths.size < 2:
+        return 0.0
+    return float(np.median(np.abs(np.diff(lengths))) / np.median(lengths))
+
+
+def _hidden(hides, frame):
+    """``frame`` with each of the ``hides`` (:class:`StaticMask`) filled in turn."""
+    for hide in hides:
+        frame = hide.fill(frame)
+    return frame
+
+
+def _found_past(hidden, image, hide, base_hint):
+    """The tube found on ``image`` (the first frame with what stood still
+    hidden): ``(detection, base_end, held)``, ``base_end`` (col, row) a point
+    near its base end where the frames told it, ``held`` whether it starts
+    at the end of ``hide`` (a holder); the detection None when no tube is
+    found."""
+    det = detect(image, base_hint=base_hint)
+    if det is None or base_hint is not None:
+        return det, None, False
+    ends = det.path[[0, -1]]
+    gaps = np.abs(ends - hide.end)
+    if gaps.min() <= MARGIN_PX + HELD_AT_END_HW * det.half_width:
+        end = ends[int(np.argmin(gaps))]
+        base_end = (end.real, -end.imag)
+        held = detect(image, base_end=base_end)
+        if held is not None:
+            return replace(held, base_source="where the tube leaves a still structure (a "
+                           "holder) that was hidden"), base_end, True
+    base_end, _, found = _static_end(hidden, det)
+    return (found if found is not None else detect(image, base_end=base_end)), base_end, False
 
 
 def _without_holder(frames, results, det, base_hint, px):

@@ -6,7 +6,9 @@ import json
 import cv2
 import numpy as np
 import pandas as pd
+import pytest
 
+from pipeline import tracks as tracks_module
 from pipeline.accuracy import score_folder
 from pipeline.motion import moved_elsewhere
 from pipeline.render import default_scene, render_scene
@@ -59,16 +61,60 @@ def _with_fibre(src, dst):
         (dst / name).write_bytes((src / name).read_bytes())
 
 
-def test_a_fibre_taken_for_the_tube_gives_no_angle(tmp_path):
-    """A dark fibre longer and darker than the tube, static: the detector takes
-    it for the tube. Without the check every frame came out ok with the
-    fibre's 'bend'; now none of the fibre's frames is measured."""
+@pytest.fixture(scope="module")
+def fibre_scene(tmp_path_factory):
+    """A rendered scene with a static dark fibre across it (see :func:`_with_fibre`)."""
+    tmp = tmp_path_factory.mktemp("fibre")
     scene = default_scene(2, n_frames=6, seed=3, width=480, height=360)
-    whole = render_scene(scene, tmp_path / "whole", fmt="png")
-    fibre = tmp_path / "fibre"
-    _with_fibre(whole, fibre)
-    um_per_px = json.loads((whole / "scene.json").read_text())["layout"]["um_per_px"]
+    whole = render_scene(scene, tmp / "whole", fmt="png")
+    _with_fibre(whole, tmp / "fibre")
+    return tmp / "fibre", json.loads((whole / "scene.json").read_text())["layout"]["um_per_px"]
+
+
+def test_a_fibre_taken_for_the_tube_is_hidden_and_the_tube_measured(fibre_scene, tmp_path):
+    """A dark fibre longer and darker than the tube, static: the detector takes
+    it for the tube. Without the stood-still check every frame came out ok
+    with the fibre's 'bend'; with the check alone none was measured. The
+    fibre is now hidden and the tube tracked past it: every frame meets the
+    targets (the first track followed part of the fibre, the second the rest
+    of it: both are hidden)."""
+    fibre, um_per_px = fibre_scene
     run = track_video(fibre / "frames", tmp_path / "out", um_per_px=um_per_px)
+    tracks = pd.read_csv(tmp_path / "out" / "tracks.csv")
+    assert (tracks.status == "ok").all()
+    _, acc = score_folder(fibre, tmp_path / "out")
+    assert acc.meets_targets(), acc
+    assert any("stood still" in note and "hidden" in note for note in run.notes)
+
+
+def test_a_tube_found_past_a_hidden_fibre_whose_length_jumps_is_not_measured(
+        fibre_scene, tmp_path, monkeypatch):
+    """The tube tracked past what was hidden is kept only where its length
+    holds (:data:`pipeline.tracks.HIDDEN_LENGTH_JITTER`); asked to hold it
+    exactly, the same scene's frames stay unmeasured, and the note says why."""
+    monkeypatch.setattr(tracks_module, "HIDDEN_LENGTH_JITTER", 0.0)
+    fibre, um_per_px = fibre_scene
+    run = track_video(fibre / "frames", tmp_path / "out", um_per_px=um_per_px)
+    tracks = pd.read_csv(tmp_path / "out" / "tracks.csv")
+    assert (tracks.status == NOT_THE_TUBE).all()
+    assert tracks.bend_angle_deg.isna().all()
+    assert any("its length jumped" in note for note in run.notes)
+
+
+def test_nothing_tube_like_past_what_stood_still_gives_no_angle(tmp_path):
+    """A static dark bar (taken for the tube) while a disc moves elsewhere:
+    with the bar hidden no tube is found, so the bar's frames stay
+    unmeasured, and the note says why."""
+    rng = np.random.default_rng(1)
+    (tmp_path / "frames").mkdir()
+    for i in range(6):
+        img = np.full((240, 320), 180.0, np.float32)
+        cv2.line(img, (10, 60), (300, 70), 40.0, 7, cv2.LINE_AA)
+        cv2.circle(img, (60 + 40 * i, 170), 14, 120.0, -1, cv2.LINE_AA)
+        img += rng.normal(0.0, 3.0, img.shape).astype(np.float32)
+        cv2.imwrite(str(tmp_path / "frames" / f"{i:03d}.png"),
+                    np.clip(img, 0, 255).astype(np.uint8))
+    run = track_video(tmp_path / "frames", tmp_path / "out", um_per_px=1.0)
     tracks = pd.read_csv(tmp_path / "out" / "tracks.csv")
     assert (tracks.status == NOT_THE_TUBE).all()
     assert tracks.bend_angle_deg.isna().all()
