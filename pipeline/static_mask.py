@@ -22,6 +22,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .centreline import Curve, resample
+from .refine import MAD_TO_SD
 
 #: Added to the structure's half-width, and beyond its ends, px: its edges'
 #: blur (a holder's dark rim left at the mask's edge is itself a structure).
@@ -61,7 +62,12 @@ class StaticMask:
     def fill(self, frame: np.ndarray) -> np.ndarray:
         """``frame`` (greyscale, any dtype) with the structure's pixels replaced
         by the plane fitted to the ring about them (a copy)."""
+        out = np.array(frame, copy=True)
         rows, cols = np.nonzero(self.ring)
+        if rows.size < 3:
+            # (a mask over the whole frame: nothing about it to fit)
+            out[self.mask] = np.median(frame)
+            return out
         values = frame[rows, cols].astype(np.float64)
         design = np.c_[np.ones(rows.size), rows, cols].astype(np.float64)
         keep = np.ones(rows.size, bool)
@@ -69,10 +75,9 @@ class StaticMask:
             coef, *_ = np.linalg.lstsq(design[keep], values[keep], rcond=None)
             dev = values - design @ coef
             mad = np.median(np.abs(dev[keep] - np.median(dev[keep])))
-            keep = np.abs(dev) <= RING_CLIP * max(1.4826 * mad, 1e-12)
+            keep = np.abs(dev) <= RING_CLIP * max(MAD_TO_SD * mad, 1e-12)
             if keep.sum() < 3:
                 break
-        out = np.array(frame, copy=True)
         r, c = np.nonzero(self.mask)
         level = np.c_[np.ones(r.size), r, c] @ coef
         if np.issubdtype(out.dtype, np.integer):
