@@ -441,8 +441,14 @@ def _bridges_to(gap: complex, lead: complex, length_px: float) -> bool:
 
 
 def _touches_border(point_rc, shape, margin: float) -> bool:
+    return border_distance(point_rc, shape) < margin
+
+
+def border_distance(point_rc, shape) -> float:
+    """How far the point (row, col) lies from the nearest border of an image
+    of ``shape`` (rows, cols), px (negative outside)."""
     r, c = point_rc
-    return r < margin or c < margin or r > shape[0] - 1 - margin or c > shape[1] - 1 - margin
+    return float(min(r, c, shape[0] - 1 - r, shape[1] - 1 - c))
 
 
 def _split_point(width: np.ndarray, trim: int = 0) -> tuple[int, float]:
@@ -592,10 +598,7 @@ def _detect_in(mask: np.ndarray, f: int, base_hint, base_end, *,
                 path_rc, width = path_rc[::-1], width[::-1]
             elif not (first_b and ratio > 1.15 and split > min_pipette):
                 ambiguous = True
-
-                def border_dist(p):
-                    return min(p[0], p[1], shape[0] - 1 - p[0], shape[1] - 1 - p[1])
-                if border_dist(path_rc[-1]) < border_dist(path_rc[0]):
+                if border_distance(path_rc[-1], shape) < border_distance(path_rc[0], shape):
                     path_rc, width = path_rc[::-1], width[::-1]
     # base: the pipette is narrower than the tube (a holder wider); find the width step
     split, ratio = _split_point(width, trim)

@@ -16,6 +16,7 @@ face, and a round cap a half-width deep would hide that much of the tube.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import cv2
 import numpy as np
@@ -23,6 +24,7 @@ from scipy.spatial import cKDTree
 
 from .centreline import Curve, resample
 from .refine import MAD_TO_SD
+from .segment import border_distance
 
 #: Added to the structure's half-width, and beyond its ends, px: its edges'
 #: blur (a holder's dark rim left at the mask's edge is itself a structure).
@@ -59,17 +61,27 @@ class StaticMask:
     def __bool__(self) -> bool:
         return bool(self.mask.any())
 
+    # (the same pixels on every frame: found once)
+    @cached_property
+    def _ring_design(self):
+        rows, cols = np.nonzero(self.ring)
+        return rows, cols, np.c_[np.ones(rows.size), rows, cols].astype(np.float64)
+
+    @cached_property
+    def _mask_design(self):
+        rows, cols = np.nonzero(self.mask)
+        return rows, cols, np.c_[np.ones(rows.size), rows, cols].astype(np.float64)
+
     def fill(self, frame: np.ndarray) -> np.ndarray:
         """``frame`` (greyscale, any dtype) with the structure's pixels replaced
         by the plane fitted to the ring about them (a copy)."""
         out = np.array(frame, copy=True)
-        rows, cols = np.nonzero(self.ring)
+        rows, cols, design = self._ring_design
         if rows.size < 3:
             # (a mask over the whole frame: nothing about it to fit)
             out[self.mask] = np.median(frame)
             return out
         values = frame[rows, cols].astype(np.float64)
-        design = np.c_[np.ones(rows.size), rows, cols].astype(np.float64)
         keep = np.ones(rows.size, bool)
         for _ in range(2):
             coef, *_ = np.linalg.lstsq(design[keep], values[keep], rcond=None)
@@ -78,8 +90,8 @@ class StaticMask:
             keep = np.abs(dev) <= RING_CLIP * max(MAD_TO_SD * mad, 1e-12)
             if keep.sum() < 3:
                 break
-        r, c = np.nonzero(self.mask)
-        level = np.c_[np.ones(r.size), r, c] @ coef
+        r, c, inside = self._mask_design
+        level = inside @ coef
         if np.issubdtype(out.dtype, np.integer):
             info = np.iinfo(out.dtype)
             level = np.clip(np.rint(level), info.min, info.max)
@@ -103,7 +115,7 @@ def static_mask(curve: Curve, half_width: float, shape: tuple[int, int],
         raise ValueError("the still structure's centreline is too short to mask")
 
     def border_dist(point: complex) -> float:
-        return min(point.real, -point.imag, cols - 1 - point.real, rows - 1 + point.imag)
+        return border_distance((-point.imag, point.real), shape)
 
     reach = half_width + margin
     # the end nearer the border is where the structure comes into view: its
