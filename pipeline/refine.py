@@ -66,6 +66,9 @@ END_STEP_LEAVE_OUT_MAX_PX = 0.5
 #: sample 1, the report's stress_no_pipette and stress_fluorescent), angle
 #: medians 0.16/0.48/0.07 deg at 0.5; 0.32/0.49/0.26 at 0.3; 0.17/0.80/0.11 at 0.7.
 END_CLEAR_HW = 0.5
+#: The fraction of the profiles past a base step found that must show the
+#: tube's edge pair for the step to stand (:func:`locate_base`).
+BASE_STEP_VALID = 0.5
 #: Edge-midpoint scatter (px) up to which the roughness penalty keeps its
 #: nominal weight; noisier frames get it scaled by (scatter / this)². Set
 #: as 0.05 px for single-line profiles: the strips' scatter is √STRIP_LINES
@@ -1122,6 +1125,43 @@ def pipette_axis(image: np.ndarray, curve: Curve, look: TubeLook, *,
     return float(curve.base_angle + turn), complex(curve.base + 1j * axis * icpt)
 
 
+def _base_step(image, starts, phi, hw: float, look: TubeLook, step: float):
+    """Where the profiles at ``starts`` (every ``step`` px along the base
+    search) step from "not the tube" to "the tube": the index of the first
+    profile past the step, or None; and whether at least a tube's width of
+    profiles lies past it, most of them showing the tube's edge pair
+    (:data:`BASE_STEP_VALID`): a step at the search's far end rests on a
+    profile or two of chance pairs, and one before a stretch of scattered
+    pairs on a width that is not the tube's."""
+    offsets = np.arange(-np.ceil(2 * hw), np.ceil(2 * hw) + 1, 0.5)
+    prof = sample_lines(image, starts, 1j * np.exp(1j * phi), offsets)
+    edges = edge_pairs(prof, 0.5, hw, polarity=look.polarity, window=0.3 * hw,
+                       smooth_px=look.smooth_px,
+                       width_tol=0.15, min_strength=0.25 * look.strength)
+    # each profile's evidence of the tube: its edge step where an edge pair of the
+    # tube's width is found, else 0. Behind the base, noise or the pipette's wall
+    # now and then forms a pair of about that width too, but a weak one: a
+    # yes/no validity would put the base at such a chance pair.
+    score = np.where(edges.valid, edges.strength, 0.0)
+    if edges.valid.sum() < 4 or edges.valid.all():
+        return None, False
+    # best step from "not the tube" to "the tube": two-level least-squares fit
+    n = score.size
+    k = np.arange(1, n)
+    c1 = np.cumsum(score)
+    c2 = np.cumsum(score**2)
+    mean_before = c1[k - 1] / k
+    mean_after = (c1[-1] - c1[k - 1]) / (n - k)
+    sse = (c2[k - 1] - c1[k - 1] * mean_before) + (c2[-1] - c2[k - 1]
+                                                   - (c1[-1] - c1[k - 1]) * mean_after)
+    sse = np.where(mean_after > mean_before, sse, np.inf)
+    if not np.isfinite(sse).any():
+        return None, False
+    best = int(k[np.argmin(sse)])
+    return best, bool((n - best) * step >= 2.0 * hw
+                      and edges.valid[best:].mean() >= BASE_STEP_VALID)
+
+
 def locate_base(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0),
                 reach: float | None = None) -> Curve:
     """Move the base along the base axis to where the tube's full width begins.
@@ -1135,11 +1175,6 @@ def locate_base(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0,
     curve's start cuts the curve there (a jointed curve is only shifted).
     """
     reach = 4.0 * float(look.half_width[0]) if reach is None else reach
-    # the tube's width as learnt just past the search, not at the curve's start:
-    # where the curve ran on into a faint pipette whose edges passed for the
-    # tube's, the width learnt there is partly the pipette's (a low-contrast
-    # 320×240 scene: base 19 px into the pipette, length +12 %)
-    hw = float(look.half_width_at(min(reach, 0.5 * curve.length) / curve.length))
     shift = _crop_shift(origin)
     axis = np.exp(1j * curve.base_angle)
     step = 0.5
@@ -1154,32 +1189,26 @@ def locate_base(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0,
     phi = np.where(s > 0, np.interp(ahead, grid, smp.phi), curve.base_angle)
     starts = np.where(s > 0, np.interp(ahead, grid, smp.z.real)
                       + 1j * np.interp(ahead, grid, smp.z.imag), curve.base + s * axis) - shift
-    offsets = np.arange(-np.ceil(2 * hw), np.ceil(2 * hw) + 1, 0.5)
-    prof = sample_lines(image, starts, 1j * np.exp(1j * phi), offsets)
-    edges = edge_pairs(prof, 0.5, hw, polarity=look.polarity, window=0.3 * hw,
-                       smooth_px=look.smooth_px,
-                       width_tol=0.15, min_strength=0.25 * look.strength)
-    # each profile's evidence of the tube: its edge step where an edge pair of the
-    # tube's width is found, else 0. Behind the base, noise or the pipette's wall
-    # now and then forms a pair of about that width too, but a weak one: a
-    # yes/no validity would put the base at such a chance pair.
-    score = np.where(edges.valid, edges.strength, 0.0)
-    if edges.valid.sum() < 4 or edges.valid.all():
+    # the tube's width as learnt just past the search, not at the curve's start:
+    # where the curve ran on into a faint pipette whose edges passed for the
+    # tube's, the width learnt there is partly the pipette's (a low-contrast
+    # 320×240 scene: base 19 px into the pipette, length +12 %). Where that
+    # finds no step with a tube's width of profiles past it, the width learnt
+    # along the whole tube (the median): on a thin, noisy tube with an
+    # off-centre lumen, the width learnt at one place may be the lumen's edge
+    # pair's, which few profiles near the base match (a fluorescent tube 7.7 px
+    # wide: the step put at the search's far end, the base 20 px into the tube,
+    # the length 12 % short)
+    local = float(look.half_width_at(min(reach, 0.5 * curve.length) / curve.length))
+    s_base = None
+    for hw in dict.fromkeys((local, float(np.median(look.half_width)))):
+        found, credible = _base_step(image, starts, phi, hw, look, step)
+        if found is not None and (credible or s_base is None):
+            s_base = s[found] - 0.5 * step
+        if credible:
+            break
+    if s_base is None:
         return curve
-    # best step from "not the tube" to "the tube": two-level least-squares fit
-    n = s.size
-    k = np.arange(1, n)
-    c1 = np.cumsum(score)
-    c2 = np.cumsum(score**2)
-    mean_before = c1[k - 1] / k
-    mean_after = (c1[-1] - c1[k - 1]) / (n - k)
-    sse = (c2[k - 1] - c1[k - 1] * mean_before) + (c2[-1] - c2[k - 1]
-                                                   - (c1[-1] - c1[k - 1]) * mean_after)
-    sse = np.where(mean_after > mean_before, sse, np.inf)
-    if not np.isfinite(sse).any():
-        return curve
-    best = int(k[np.argmin(sse)])
-    s_base = 0.5 * (s[best - 1] + s[best])
     if s_base <= -step:
         # behind: the curve carried back along the base axis, the rest of it
         # kept where it is (shifting it all would take a curled tube's tip off

@@ -157,6 +157,21 @@ def test_locate_base_is_not_misled_by_a_pipette_width_learnt_at_the_start():
     assert abs(found.length - 450.0) < 1.0
 
 
+def test_locate_base_is_not_misled_by_a_width_learnt_off_at_one_place():
+    """The learnt width dips where the base search ends (on a thin, noisy tube
+    with an off-centre lumen, the lumen's edge pair taken for the tube's
+    there): the base is still found where the tube begins, from a curve that
+    starts short of it, or past it (it had been left 20 px into the tube)."""
+    img = tube_image(SHAPE, BASE, 0.0, 450.0, 0.0, 16.0, noise=0.01)
+    truth = _truth(0.0)
+    look = TubeLook(-1, np.r_[16.0, 12.0, np.full(7, 16.0)], 0.05)
+    for start in (-6.0, 6.0):
+        curve = Curve(truth.base + start, 0.0, truth.length - start, truth.coef)
+        found = locate_base(img, curve, look)
+        assert abs(found.base - BASE) < 1.0
+        assert abs(found.length - 450.0) < 1.0
+
+
 def test_locate_base_follows_a_bent_tube_past_a_long_run_of_pipette():
     """A pipette shown only by its two thin glass walls, as wide as the tube once
     thresholded: the first fit ran 110 px along it from the image border. The
