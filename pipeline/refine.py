@@ -1200,15 +1200,15 @@ def locate_base(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0,
     # wide: the step put at the search's far end, the base 20 px into the tube,
     # the length 12 % short)
     local = float(look.half_width_at(min(reach, 0.5 * curve.length) / curve.length))
-    s_base = None
-    for hw in dict.fromkeys((local, float(np.median(look.half_width)))):
-        found, credible = _base_step(image, starts, phi, hw, look, step)
-        if found is not None and (credible or s_base is None):
-            s_base = s[found] - 0.5 * step
-        if credible:
-            break
-    if s_base is None:
+    found, credible = _base_step(image, starts, phi, local, look, step)
+    median = float(np.median(look.half_width))
+    if not credible and median != local:
+        # (the median's step only if it stands: else the first width's, as before)
+        again, credible = _base_step(image, starts, phi, median, look, step)
+        found = again if credible else found
+    if found is None:
         return curve
+    s_base = s[found] - 0.5 * step
     if s_base <= -step:
         # behind: the curve carried back along the base axis, the rest of it
         # kept where it is (shifting it all would take a curled tube's tip off
