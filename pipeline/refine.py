@@ -69,6 +69,11 @@ END_CLEAR_HW = 0.5
 #: The fraction of the profiles past a base step found that must show the
 #: tube's edge pair for the step to stand (:func:`locate_base`).
 BASE_STEP_VALID = 0.5
+#: Where the tube's edge pair is found on every profile of the base search
+#: (the tube seen through a clear pipette, or running on out of the frame),
+#: a base step stands only where the pairs' mean strength behind it is at
+#: most this fraction of theirs past it (:func:`locate_base`).
+BASE_STEP_CLAD = 0.5
 #: Edge-midpoint scatter (px) up to which the roughness penalty keeps its
 #: nominal weight; noisier frames get it scaled by (scatter / this)². Set
 #: as 0.05 px for single-line profiles: the strips' scatter is √STRIP_LINES
@@ -1143,7 +1148,7 @@ def _base_step(image, starts, phi, hw: float, look: TubeLook, step: float):
     # now and then forms a pair of about that width too, but a weak one: a
     # yes/no validity would put the base at such a chance pair.
     score = np.where(edges.valid, edges.strength, 0.0)
-    if edges.valid.sum() < 4 or edges.valid.all():
+    if edges.valid.sum() < 4:
         return None, False
     # best step from "not the tube" to "the tube": two-level least-squares fit
     n = score.size
@@ -1158,6 +1163,9 @@ def _base_step(image, starts, phi, hw: float, look: TubeLook, step: float):
     if not np.isfinite(sse).any():
         return None, False
     best = int(k[np.argmin(sse)])
+    if edges.valid.all() and mean_before[best - 1] > BASE_STEP_CLAD * mean_after[best - 1]:
+        # the tube is seen behind as well, as strongly: nothing steps there
+        return None, False
     return best, bool((n - best) * step >= 2.0 * hw
                       and edges.valid[best:].mean() >= BASE_STEP_VALID)
 

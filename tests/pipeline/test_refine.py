@@ -172,6 +172,26 @@ def test_locate_base_is_not_misled_by_a_width_learnt_off_at_one_place():
         assert abs(found.length - 450.0) < 1.0
 
 
+@pytest.mark.parametrize("start", [-6.0, 6.0])
+def test_locate_base_finds_a_tube_that_is_seen_inside_its_pipette_too(start):
+    """Through a clear pipette the tube shows behind its base as well, its edges
+    fainter: every profile of the search finds its edge pair, and the base is
+    where their strength steps (it had been left where the first fit put it,
+    5 px off on a fluorescent scene). A tube as strong behind the search as
+    past it shows no step: its base is left where it was."""
+    truth = _truth(0.0)
+    curve = Curve(truth.base + start, 0.0, truth.length - start, truth.coef)
+    look = TubeLook(-1, np.full(9, 16.0), 0.05)
+    clad = tube_image(SHAPE, BASE, 0.0, 450.0, 0.0, 16.0, pipette_half_width=16.0,
+                      pipette_contrast=0.4, noise=0.01)
+    found = locate_base(clad, curve, look)
+    assert abs(found.base - BASE) < 1.0
+    assert abs(found.length - 450.0) < 1.0
+    bare = tube_image(SHAPE, BASE, 0.0, 450.0, 0.0, 16.0, pipette_half_width=16.0,
+                      pipette_contrast=1.0, noise=0.01)
+    assert locate_base(bare, curve, look).base == curve.base
+
+
 def test_locate_base_follows_a_bent_tube_past_a_long_run_of_pipette():
     """A pipette shown only by its two thin glass walls, as wide as the tube once
     thresholded: the first fit ran 110 px along it from the image border. The
