@@ -1132,12 +1132,13 @@ def pipette_axis(image: np.ndarray, curve: Curve, look: TubeLook, *,
 
 def _base_step(image, starts, phi, hw: float, look: TubeLook, step: float):
     """Where the profiles at ``starts`` (every ``step`` px along the base
-    search) step from "not the tube" to "the tube": the index of the first
-    profile past the step, or None; and whether at least a tube's width of
-    profiles lies past it, most of them showing the tube's edge pair
-    (:data:`BASE_STEP_VALID`): a step at the search's far end rests on a
-    profile or two of chance pairs, and one before a stretch of scattered
-    pairs on a width that is not the tube's."""
+    search) step from "not the tube" to "the tube": the index of the first profile
+    past the step, or None (also where every profile shows the tube's edge
+    pair and their strength does not step by :data:`BASE_STEP_CLAD`); and
+    whether at least a tube's width of profiles lies past it, most of them
+    showing the tube's edge pair (:data:`BASE_STEP_VALID`): a step at the
+    search's far end rests on a profile or two of chance pairs, and one before
+    a stretch of scattered pairs on a width that is not the tube's."""
     offsets = np.arange(-np.ceil(2 * hw), np.ceil(2 * hw) + 1, 0.5)
     prof = sample_lines(image, starts, 1j * np.exp(1j * phi), offsets)
     edges = edge_pairs(prof, 0.5, hw, polarity=look.polarity, window=0.3 * hw,
@@ -1175,12 +1176,14 @@ def locate_base(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0,
     """Move the base along the base axis to where the tube's full width begins.
 
     The pipette that holds the tube is narrower (or wider) than the tube, or
-    absent beyond the image border; along the base axis, profiles behind the
-    base therefore find no edge pair of the tube's width and profiles after it
-    do. The base is put at the change, to half a profile step, and the length
-    adjusted so that the tip stays where it is. Behind the base the profiles
-    lie along the base axis, past it along the curve; a base found ahead of the
-    curve's start cuts the curve there (a jointed curve is only shifted).
+    absent beyond the image border; along the base axis, profiles behind the base
+    therefore find no edge pair of the tube's width and profiles after it do
+    (or, through a clear pipette, find the tube's pair behind the base too,
+    but fainter). The base is put at the change, to half a profile step, and
+    the length adjusted so that the tip stays where it is. Behind the base the
+    profiles lie along the base axis, past it along the curve; a base found
+    ahead of the curve's start cuts the curve there (a jointed curve is only
+    shifted).
     """
     reach = 4.0 * float(look.half_width[0]) if reach is None else reach
     shift = _crop_shift(origin)
