@@ -64,7 +64,6 @@ import numpy as np
 import pandas as pd
 from scipy import sparse
 from scipy.optimize import least_squares
-from scipy.stats import median_abs_deviation
 
 from models import LSParams, eb_bend_angle, eb_shape, get_sample, ls_bend_angle, ls_shape
 from models.line_segment import DEFAULT_EPS_MAX, DEFAULT_EPS_MIN, DEFAULT_SEGMENTS
@@ -72,6 +71,7 @@ from models.line_segment import DEFAULT_EPS_MAX, DEFAULT_EPS_MIN, DEFAULT_SEGMEN
 from . import schema as S
 from .atomic import atomic_path, write_csv, write_json
 from .pressure import FramePressures, frame_pressures
+from .robust import robust_sd
 
 #: Arc-length fractions compared per frame.
 DEFAULT_FRACTIONS = 100
@@ -669,7 +669,7 @@ def _length_trend(data: FitData, p_ratio: np.ndarray):
         design = np.column_stack([np.ones(keep.sum()), p_ratio[keep]])
         coef, *_ = np.linalg.lstsq(design, data.length_um[keep], rcond=None)
         res = data.length_um - (coef[0] + coef[1] * p_ratio)
-        mad = median_abs_deviation(res[keep], scale="normal")
+        mad = robust_sd(res[keep])
         new = np.abs(res) <= max(5 * mad, 1e-9 * abs(coef[0]))
         if new.sum() < 3 or (new == keep).all():
             break

@@ -30,10 +30,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.stats import median_abs_deviation
 
 from .centreline import Curve, basis_of, evaluate, jacobian, make_basis
 from .profiles import END_NARROWING_HW
+from .robust import robust_sd
 
 #: F ratio (drop of the midpoints' residual sum of squares on adding the kink,
 #: over their scatter per degree of freedom) above which a joint is kept.
@@ -228,7 +228,7 @@ def _width_scatter(w: np.ndarray) -> float:
     """The scatter of widths measured along the tube, px: from their
     differences (a step is one outlier there), robustly; at least 1e-3 px,
     which keeps a noise-free render finite."""
-    return max(float(median_abs_deviation(np.diff(w), scale="normal")) / np.sqrt(2), 1e-3)
+    return max(float(robust_sd(np.diff(w))) / np.sqrt(2), 1e-3)
 
 
 def width_steps(u: np.ndarray, width: np.ndarray, half_width: float, length: float, *,

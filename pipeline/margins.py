@@ -12,8 +12,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import median_abs_deviation
 
+from .robust import robust_sd
 from .track import as_float
 
 #: At most this share of each dimension is taken for a margin.
@@ -78,7 +78,7 @@ def frame_noise(image: np.ndarray) -> float:
     """Robust pixel noise σ of a frame, from neighbouring pixels' differences
     (floored at half a grey level of 8-bit video: a noise-free frame has none)."""
     diff = np.diff(image[::4], axis=1)  # (every 4th row: a million pixels are not needed)
-    mad = median_abs_deviation(diff, axis=None, scale="normal")
+    mad = robust_sd(diff, axis=None)
     return max(float(mad / np.sqrt(2.0)), 0.5 / 255)
 
 
@@ -144,5 +144,5 @@ def _side(lines: np.ndarray, sigma: float) -> int:
 def _levels(block: np.ndarray, sigma: float):
     """Each line's median, and whether it is flat (see :data:`FLAT_SIGMA`)."""
     level = np.median(block, axis=1)
-    spread = median_abs_deviation(block, axis=1, scale="normal")
+    spread = robust_sd(block, axis=1)
     return level, spread <= FLAT_SIGMA * sigma

@@ -21,7 +21,8 @@ from dataclasses import dataclass, replace
 import cv2
 import numpy as np
 from scipy.ndimage import correlate1d, gaussian_filter1d
-from scipy.stats import median_abs_deviation
+
+from .robust import robust_sd
 
 #: A tube's end narrows its measured width over this many half-widths: a
 #: round cap over one, and the profiles' strips and edge filter carry that
@@ -421,4 +422,4 @@ def gradient_noise(image: np.ndarray, smooth_px: float) -> float:
     values = grad[np.isfinite(grad)]
     if values.size == 0:
         return 0.0
-    return float(median_abs_deviation(values, scale="normal"))
+    return float(robust_sd(values))

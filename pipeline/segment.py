@@ -31,11 +31,11 @@ import numpy as np
 from scipy import ndimage as ndi
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import shortest_path
-from scipy.stats import median_abs_deviation
 from skimage.filters import apply_hysteresis_threshold
 from skimage.morphology import skeletonize
 
 from .centreline import from_image
+from .robust import robust_sd
 
 #: The tube found by its outline (:func:`outline_foreground`) is taken instead
 #: of the one found by its contrast when it is this much longer: on a mottled
@@ -130,7 +130,7 @@ def contrast_image(image: np.ndarray, factor: int):
     # a noise-free frame (rendered, or heavily denoised) would make every smooth
     # residual of the background "significant": floor the noise at half a grey
     # level of 8-bit video
-    noise = max(float(median_abs_deviation(hp, axis=None, scale="normal")) * 1.6, 0.5 / 255)
+    noise = max(float(robust_sd(hp, axis=None)) * 1.6, 0.5 / 255)
     return (diff / noise).astype(np.float32), background
 
 
@@ -161,10 +161,10 @@ def foreground(contrast: np.ndarray, *, high: float = 6.0, low: float = 3.0,
     # thresholds in units of the *smoothed* image's noise (≈ 0.3 of the raw noise
     # for white noise, but measured: compression and optics correlate the noise)
     hp = smooth - cv2.GaussianBlur(smooth, (0, 0), 4.0)
-    noise = median_abs_deviation(hp, axis=None, scale="normal")
+    noise = robust_sd(hp, axis=None)
     # ... but no lower than what the background model leaves over the whole frame
     # (uneven illumination it did not follow), or that residue floods the mask
-    spread = median_abs_deviation(smooth, axis=None, scale="normal")
+    spread = robust_sd(smooth, axis=None)
     # (and no lower than white noise of the contrast's unit would give after this
     # blur: a noise-free frame has none to measure)
     noise = max(noise, spread, 0.3)
