@@ -22,8 +22,8 @@ from . import schema as S
 from .atomic import write_csv, write_json
 from .binning import Binning
 from .centreline import Curve, resample, tip_point
-from .field import Field, field_stop
-from .margins import Margins, blank_margins
+from .field import field_stop
+from .margins import blank_margins
 from .pipette import drop_holder
 from .refine import (
     END_CLEAR_HW,
@@ -225,14 +225,11 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
         if base_hint is not None and not (0 <= base_hint[0] < cols and 0 <= base_hint[1] < rows):
             raise ValueError(f"--base {base_hint} lies outside the {cols}x{rows} image")
         rate = fps or reader.fps
-        frame_iter = iter(reader)
-        first = next(frame_iter, None)
-        frame_iter.close()
-        margins = blank_margins(first) if first is not None else Margins()
+        margins = blank_margins(reader.first)
         frames = _Mapped(reader, margins.crop) if margins else reader
-        kept = margins.crop(first).shape[:2] if first is not None else (0, 0)
+        kept = margins.crop(reader.first).shape[:2]
         # (on the frame without its margins: a letterboxed field stop)
-        stop = field_stop(margins.crop(first)) if first is not None else Field()
+        stop = field_stop(margins.crop(reader.first))
         if stop:
             frames = _Mapped(frames, stop.fill)
         if base_hint is not None and margins:
@@ -356,6 +353,11 @@ class _Mapped:
     def __iter__(self):
         return map(self._view, self._frames)
 
+    @property
+    def first(self) -> np.ndarray:
+        """The first frame, seen through ``view`` (the reader decodes it once)."""
+        return self._view(self._frames.first)
+
 
 def _moved(track: FrameTrack, offset: complex) -> FrameTrack:
     """``track`` with its curves moved by ``offset`` (px, y up): from a crop's
@@ -366,10 +368,9 @@ def _moved(track: FrameTrack, offset: complex) -> FrameTrack:
 
 
 def _first_detection(frames, base_hint=None):
-    """The tube found on the first of ``frames`` (None if none, or no frame),
-    its base at ``base_hint`` (col, row) if given."""
-    first = next(iter(frames), None)
-    return detect(as_float(first), base_hint=base_hint) if first is not None else None
+    """The tube found on the first of ``frames`` (None if none), its base at
+    ``base_hint`` (col, row) if given."""
+    return detect(as_float(frames.first), base_hint=base_hint)
 
 
 #: A tracked tube whose tip stayed within this many half-widths (and 2 px) of
@@ -435,7 +436,7 @@ def _past_still(frames, still, base_hint, settings, joints):
     frames being the hidden ones; or, where no tube is found past them that
     can be measured, a line saying why.
     """
-    view = next(iter(frames))
+    view = frames.first
     hides = []
     while len(hides) < HIDDEN_MAX:
         hides.append(static_mask(*still, view.shape[:2]))
@@ -519,7 +520,7 @@ def _without_holder(frames, results, det, base_hint, px):
     narrower pipette's width step may be a step along the holder itself)."""
     if det is None or base_hint is not None:
         return results, None
-    return drop_holder(results, lambda: as_float(next(iter(frames))), det.half_width, px)
+    return drop_holder(results, lambda: as_float(frames.first), det.half_width, px)
 
 
 def _static_end(reader, det):
