@@ -34,6 +34,7 @@ import numpy as np
 from .centreline import Curve, basis_of, evaluate, jacobian, make_basis
 from .profiles import END_NARROWING_HW
 from .robust import robust_sd
+from .steps import two_level_fit
 
 #: F ratio (drop of the midpoints' residual sum of squares on adding the kink,
 #: over their scatter per degree of freedom) above which a joint is kept.
@@ -446,9 +447,7 @@ def place_steps(u: np.ndarray, width: np.ndarray, coarse, half_width: float,
             continue
         # residual sum of squares of the best two-level fit, for each split
         k = np.arange(3, n - 2)
-        left, left2 = np.cumsum(ww)[k - 1], np.cumsum(ww ** 2)[k - 1]
-        right, right2 = ww.sum() - left, (ww ** 2).sum() - left2
-        sse = left2 - left ** 2 / k + right2 - right ** 2 / (n - k)
+        sse = two_level_fit(ww)[0][k - 1]
         split = 0.5 * (uu[k - 1] + uu[k])
         sse[np.abs(split - c) > 0.75 * width_u] = np.inf
         out.append(float(split[int(np.argmin(sse))]) if np.isfinite(sse).any() else float(c))

@@ -28,6 +28,7 @@ from .centreline import (
     resample,
 )
 from .profiles import FADED_COS, Edges, edge_pairs, end_edge, sample_lines, sample_strips
+from .steps import two_level_fit
 
 #: Each edge profile is the mean of this many parallel lines, spread over
 #: ±:data:`STRIP_HALF_PX` along the tube. The profiles lie 2–12 px apart,
@@ -1154,12 +1155,7 @@ def _base_step(image, starts, phi, hw: float, look: TubeLook, step: float):
     # best step from "not the tube" to "the tube": two-level least-squares fit
     n = score.size
     k = np.arange(1, n)
-    c1 = np.cumsum(score)
-    c2 = np.cumsum(score**2)
-    mean_before = c1[k - 1] / k
-    mean_after = (c1[-1] - c1[k - 1]) / (n - k)
-    sse = (c2[k - 1] - c1[k - 1] * mean_before) + (c2[-1] - c2[k - 1]
-                                                   - (c1[-1] - c1[k - 1]) * mean_after)
+    sse, mean_before, mean_after = two_level_fit(score)
     sse = np.where(mean_after > mean_before, sse, np.inf)
     if not np.isfinite(sse).any():
         return None, False

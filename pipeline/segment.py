@@ -36,6 +36,7 @@ from skimage.morphology import skeletonize
 
 from .centreline import from_image
 from .robust import robust_sd
+from .steps import two_level_fit
 
 #: The tube found by its outline (:func:`outline_foreground`) is taken instead
 #: of the one found by its contrast when it is this much longer: on a mottled
@@ -466,13 +467,8 @@ def _split_point(width: np.ndarray, trim: int = 0) -> tuple[int, float]:
     n = width.size
     if n < 6:
         return 0, 1.0
-    c1 = np.cumsum(width)
-    c2 = np.cumsum(width**2)
     k = np.arange(2, n - 2)
-    sse_left = c2[k - 1] - c1[k - 1] ** 2 / k
-    tot1, tot2 = c1[-1], c2[-1]
-    sse_right = (tot2 - c2[k - 1]) - (tot1 - c1[k - 1]) ** 2 / (n - k)
-    best = int(k[np.argmin(sse_left + sse_right)])
+    best = int(k[np.argmin(two_level_fit(width)[0][k - 1])])
     before = np.median(width[:best])
     after = np.median(width[best:])
     return best, float(after / max(before, 1e-9))

@@ -1,0 +1,29 @@
+import numpy as np
+import pytest
+
+from pipeline.steps import two_level_fit
+
+
+def test_two_level_fit_matches_each_split_fitted_on_its_own():
+    rng = np.random.default_rng(5)
+    x = rng.normal(size=37) * 3 + 10
+    sse, before, after = two_level_fit(x)
+    assert sse.shape == before.shape == after.shape == (36,)
+    for k in range(1, 37):
+        a, b = x[:k], x[k:]
+        assert before[k - 1] == pytest.approx(a.mean())
+        assert after[k - 1] == pytest.approx(b.mean())
+        assert sse[k - 1] == pytest.approx(((a - a.mean()) ** 2).sum() + ((b - b.mean()) ** 2).sum())
+
+
+def test_two_level_fit_puts_the_least_residual_at_a_noisy_step():
+    rng = np.random.default_rng(6)
+    x = np.r_[np.full(40, 2.0), np.full(25, 5.0)] + rng.normal(scale=0.3, size=65)
+    sse, before, after = two_level_fit(x)
+    assert int(np.argmin(sse)) + 1 == 40
+    assert before[39] == pytest.approx(2.0, abs=0.15) and after[39] == pytest.approx(5.0, abs=0.15)
+
+
+def test_two_level_fit_of_a_flat_sequence_leaves_no_residual_anywhere():
+    sse, before, after = two_level_fit(np.full(10, 7.0))
+    assert np.allclose(sse, 0.0) and np.allclose(before, 7.0) and np.allclose(after, 7.0)
