@@ -378,6 +378,16 @@ def test_reader_can_be_iterated_twice_and_closes_open_iterations(tmp_path):
     assert next(pending, None) is None  # closed on exit
 
 
+@pytest.mark.parametrize("name", ["v.avi", "s.tif", "folder"])
+def test_first_frame_is_the_one_iteration_yields_and_read_only(tmp_path, name):
+    write_frames([ramp8(k=k) for k in range(3)], tmp_path / name)
+    with open_frames(tmp_path / name) as reader:
+        np.testing.assert_array_equal(reader.first, next(iter(reader)))
+        assert reader.first.dtype == next(iter(reader)).dtype
+        with pytest.raises(ValueError):
+            reader.first[0, 0] = 1
+
+
 def test_video_attributes(tmp_path):
     write_frames([smooth(32, 48, k) for k in range(5)], tmp_path / "v.avi", fps=7.5)
     with open_frames(str(tmp_path / "v.avi")) as reader:
