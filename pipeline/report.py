@@ -349,6 +349,11 @@ def _readme(out: Path, track, speed, calib, vs_n, demo, model_md: str,
         f"{s.frames / s.opencv_colour_decode_s:.0f} frames/s: "
         f"{s.ratio_to_opencv_colour_decode:.1f}× that. {cores}; "
         "each the best of 3 runs (figures vary by ±30 % on a busy machine). "
+        f"Typed as a command (`microtube track`, a fresh process: Python, NumPy, OpenCV, SciPy "
+        f"and pandas loaded first), the same video takes {s.command_s:.2f} s "
+        f"({s.command_frames_per_s:.0f} frames/s), {s.startup_s:.2f} s of it "
+        f"({s.startup_s / s.command_s:.0%}) the start-up alone, which a longer video "
+        "spreads over more frames. "
         f"[`{SPEED_FILE}`]({SPEED_FILE})", "",
         *settings_section(sweep, speed), "",
         "## Calibration", "",

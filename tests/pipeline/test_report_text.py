@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 
 from pipeline.report import _growth_line
-from pipeline.tracking_report import _on_one_cpu, drawn_section
+from pipeline.tracking_report import _on_one_cpu, _timed_process, drawn_section
 
 
 def test_the_error_growth_is_measured_from_the_per_frame_table(tmp_path):
@@ -63,3 +63,9 @@ def test_the_speed_benchmark_runs_in_a_python_that_sees_one_cpu():
 def test_a_failing_benchmark_says_why():
     with pytest.raises(RuntimeError, match="speed benchmark failed: ZeroDivisionError"):
         _on_one_cpu("1 / 0")
+
+
+def test_a_timed_command_runs_as_typed_and_says_why_it_failed():
+    assert 0.0 < _timed_process(["-c", "import sys; sys.exit(0)"]) < 60.0
+    with pytest.raises(RuntimeError, match="speed benchmark failed: ValueError: no"):
+        _timed_process(["-c", "raise ValueError('no')"])
