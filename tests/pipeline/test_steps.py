@@ -13,7 +13,8 @@ def test_two_level_fit_matches_each_split_fitted_on_its_own():
         a, b = x[:k], x[k:]
         assert before[k - 1] == pytest.approx(a.mean())
         assert after[k - 1] == pytest.approx(b.mean())
-        assert sse[k - 1] == pytest.approx(((a - a.mean()) ** 2).sum() + ((b - b.mean()) ** 2).sum())
+        rss = ((a - a.mean()) ** 2).sum() + ((b - b.mean()) ** 2).sum()
+        assert sse[k - 1] == pytest.approx(rss)
 
 
 def test_two_level_fit_puts_the_least_residual_at_a_noisy_step():
