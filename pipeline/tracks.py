@@ -23,6 +23,7 @@ from .atomic import write_csv, write_json
 from .binning import Binning
 from .centreline import Curve, resample, tip_point
 from .field import field_stop
+from .levels import levels_of
 from .margins import blank_margins
 from .pipette import drop_holder
 from .refine import (
@@ -225,11 +226,14 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
         if base_hint is not None and not (0 <= base_hint[0] < cols and 0 <= base_hint[1] < rows):
             raise ValueError(f"--base {base_hint} lies outside the {cols}x{rows} image")
         rate = fps or reader.fps
-        margins = blank_margins(reader.first)
-        frames = _Mapped(reader, margins.crop) if margins else reader
-        kept = margins.crop(reader.first).shape[:2]
+        # (a 10-bit camera's counts in 16-bit files: scaled to the full range first)
+        levels = levels_of(reader.first)
+        source_frames = _Mapped(reader, levels.frame) if levels else reader
+        margins = blank_margins(source_frames.first)
+        frames = _Mapped(source_frames, margins.crop) if margins else source_frames
+        kept = margins.crop(source_frames.first).shape[:2]
         # (on the frame without its margins: a letterboxed field stop)
-        stop = field_stop(margins.crop(reader.first))
+        stop = field_stop(margins.crop(source_frames.first))
         if stop:
             frames = _Mapped(frames, stop.fill)
         if base_hint is not None and margins:
@@ -312,6 +316,8 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
         notes.append(holder_note)
     if motion_note:
         notes.append(motion_note)
+    if levels:
+        notes.append(levels.describe())
     if margins:
         notes.append(margins.describe())
     if stop:

@@ -1,0 +1,40 @@
+import numpy as np
+import pytest
+
+from pipeline.levels import levels_of
+
+
+def test_eight_bit_and_full_range_frames_are_left_as_they_are():
+    for first in (np.full((4, 4), 3, np.uint8),
+                  np.array([[0, 40000]], np.uint16),
+                  np.array([[0.1, 0.9]], np.float32)):
+        levels = levels_of(first)
+        assert not levels
+        assert levels.frame(first) is first
+
+
+@pytest.mark.parametrize(("top", "full"), [(1023, 1023), (1000, 1023), (4095, 4095),
+                                          (300, 511), (8191, 8191)])
+def test_sixteen_bit_counts_are_scaled_by_the_bits_the_first_frame_uses(top, full):
+    first = np.array([[0, top // 2, top]], np.uint16)
+    levels = levels_of(first)
+    assert levels and levels.full == full
+    scaled = levels.frame(first)
+    assert scaled.dtype == np.float32
+    np.testing.assert_allclose(scaled, first / full, rtol=1e-6)
+    assert f"({int(np.log2(full + 1))}-bit)" in levels.describe()
+    # a later, brighter frame goes above 1: nothing is clipped
+    assert levels.frame(np.array([[2 * full]], np.uint16))[0, 0] == pytest.approx(2.0)
+
+
+@pytest.mark.parametrize("top", [4000.0, 0.01])
+def test_float_frames_in_another_unit_are_scaled_by_their_largest_value(top):
+    first = np.array([[0.0, 0.5 * top, top, np.nan]], np.float32)
+    levels = levels_of(first)
+    assert levels and levels.full == pytest.approx(top)
+    np.testing.assert_allclose(levels.frame(first)[0, :3], [0.0, 0.5, 1.0], rtol=1e-6)
+
+
+def test_a_black_first_frame_is_not_scaled():
+    assert not levels_of(np.zeros((3, 3), np.uint16))
+    assert not levels_of(np.zeros((3, 3), np.float32))
