@@ -38,3 +38,12 @@ def test_float_frames_in_another_unit_are_scaled_by_their_largest_value(top):
 def test_a_black_first_frame_is_not_scaled():
     assert not levels_of(np.zeros((3, 3), np.uint16))
     assert not levels_of(np.zeros((3, 3), np.float32))
+
+
+@pytest.mark.parametrize("dtype", [np.uint16, np.float32])
+def test_a_span_high_in_the_range_has_its_black_level_taken_off(dtype):
+    first = np.array([[30000, 30500, 31023]], dtype)
+    levels = levels_of(first)
+    assert levels and levels.black == 30000
+    assert levels.full == (1023 if dtype == np.uint16 else pytest.approx(1023))
+    np.testing.assert_allclose(levels.frame(first), [[0.0, 500 / 1023, 1.0]], rtol=1e-5)
