@@ -53,13 +53,16 @@ def write_overlay(source, results: list[FrameTrack], path, *, n: int = 6,
                   tile_width: int = 480) -> None:
     """A montage PNG of a few frames with their tracked centrelines."""
     from .frames import open_frames
+    from .levels import levels_of
 
     wanted = set(pick_frames(results, n))
     tiles = []
     with open_frames(source) as reader:
+        # (shown as tracked: a few bits' counts in 16-bit files are black otherwise)
+        levels = levels_of(reader.first)
         for i, frame in enumerate(reader):
             if i in wanted:
-                tile = draw_frame(frame, results[i])
+                tile = draw_frame(levels.frame(frame), results[i])
                 h = int(round(tile.shape[0] * tile_width / tile.shape[1]))
                 tiles.append(cv2.resize(tile, (tile_width, h), interpolation=cv2.INTER_AREA))
             if i >= max(wanted):

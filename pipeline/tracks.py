@@ -351,7 +351,7 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
 
 class _Mapped:
     """A reader's frames, each passed through ``view`` (re-iterable, as the
-    reader): without their blank margins, binned."""
+    reader): brought to the full range, without their blank margins, binned."""
 
     def __init__(self, frames, view):
         self._frames, self._view = frames, view

@@ -47,3 +47,21 @@ def test_a_span_high_in_the_range_has_its_black_level_taken_off(dtype):
     assert levels and levels.black == 30000
     assert levels.full == (1023 if dtype == np.uint16 else pytest.approx(1023))
     np.testing.assert_allclose(levels.frame(first), [[0.0, 500 / 1023, 1.0]], rtol=1e-5)
+
+
+def test_the_overlay_shows_a_few_bits_counts_as_bright_as_full_range_frames(tmp_path):
+    import cv2
+    import tifffile
+
+    from pipeline.overlay import write_overlay
+    from pipeline.track import FrameTrack
+
+    ramp = np.tile(np.linspace(0.0, 0.9, 64), (48, 1))
+    results = [FrameTrack(i, "no tube found", None, "") for i in range(2)]
+    means = []
+    for name, frames in (("full.tif", [np.round(ramp * 65535).astype(np.uint16)] * 2),
+                         ("few.tif", [np.round(ramp * 1023).astype(np.uint16)] * 2)):
+        tifffile.imwrite(tmp_path / name, np.stack(frames))
+        write_overlay(tmp_path / name, results, tmp_path / f"{name}.png")
+        means.append(cv2.imread(str(tmp_path / f"{name}.png")).mean())
+    assert means[1] == pytest.approx(means[0], rel=0.02)
