@@ -353,7 +353,10 @@ def _readme(out: Path, track, speed, calib, vs_n, demo, model_md: str,
         f"and pandas loaded first), the same video takes {s.command_s:.2f} s "
         f"({s.command_frames_per_s:.0f} frames/s), {s.startup_s:.2f} s of it "
         f"({s.startup_s / s.command_s:.0%}) the start-up alone, which a longer video "
-        "spreads over more frames. "
+        "spreads over more frames: past the first frames' work (the tube's detection, its "
+        f"look, the base), each further frame is tracked at {s.later_frames_per_s:.0f} "
+        f"frames/s, {s.decode_frames_per_s / s.later_frames_per_s:.1f}× its decoding time "
+        "(the second half of the video's frames, decoding included). "
         f"[`{SPEED_FILE}`]({SPEED_FILE})", "",
         *settings_section(sweep, speed), "",
         "## Calibration", "",

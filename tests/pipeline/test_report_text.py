@@ -69,3 +69,16 @@ def test_a_timed_command_runs_as_typed_and_says_why_it_failed():
     assert 0.0 < _timed_process(["-c", "import sys; sys.exit(0)"]) < 60.0
     with pytest.raises(RuntimeError, match="speed benchmark failed: ValueError: no"):
         _timed_process(["-c", "raise ValueError('no')"])
+
+
+def test_the_speed_timing_gives_the_later_frames_cost_within_the_whole_run(tmp_path):
+    from pipeline.render import default_scene, render_scene
+    from pipeline.tracking_report import _time_track
+
+    scene = default_scene(3, n_frames=16, seed=5, width=320, height=240)
+    video = render_scene(scene, tmp_path / "scene", fmt="avi") / "frames.avi"
+    t = _time_track(video, tmp_path / "out")
+    assert t["frames_ok"] == 16
+    assert 0.0 < t["decode_s"] < t["track_s"]
+    # the second half's 8 frames take part of the whole run, which also finds the tube
+    assert 0.0 < 8 * t["later_frame_s"] < t["track_s"]
