@@ -268,8 +268,18 @@ class TrackSettings:
         The same on the frame after a (re)start, where the prediction is only
         the last shape (no velocity yet); ≥ 1.
     tol_px : float
-        Every refinement stops early once no point of the centreline moves
-        more than this in a round, px; > 0.
+        The refinements that start far from the tube (the start, the wide
+        search, a fresh find, a refit with new joints) stop early once no point
+        of the centreline moves more than this in a round, px; > 0.
+    fast_tol_px : float
+        The same for the fast path, which starts from the prediction: within
+        this of its last round, a round more only refits the edges' own noise.
+        Measured against 0.02 px on 182 rendered scenes: angle medians better on
+        52 and worse on 44, their means unchanged (median 0.81, p95 1.43 deg);
+        4 scenes at a target's limit crossed it (3 medians by 0.002-0.04 deg,
+        one frame's centreline RMS) and 1 of 30 independently rendered scenes
+        crossed it the other way; 1.2 ms a frame less (4.9 -> 3.7 ms, 1024x768);
+        > 0.
     widths_per_coef : float
         Spacing of the centreline's spline coefficients, in tube widths (one
         coefficient per this many widths, 8 … 48 coefficients; set when the
@@ -285,6 +295,7 @@ class TrackSettings:
     rounds: int = 3
     first_rounds: int = 20
     tol_px: float = 0.02
+    fast_tol_px: float = 0.1
     widths_per_coef: float = 0.75
     jointed_widths_per_coef: float = 1.5
 
@@ -293,7 +304,7 @@ class TrackSettings:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
                 raise ValueError(f"TrackSettings.{name} must be an integer >= 1, got {value!r}")
-        for name in ("tol_px", "widths_per_coef", "jointed_widths_per_coef"):
+        for name in ("tol_px", "fast_tol_px", "widths_per_coef", "jointed_widths_per_coef"):
             value = getattr(self, name)
             if (isinstance(value, bool) or not isinstance(value, (int, float, np.floating))
                     or not np.isfinite(value) or value <= 0):
@@ -1216,7 +1227,7 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
     rounds = settings.rounds if len(history) >= 2 else settings.first_rounds
     tol = settings.tol_px
     r = refine(crop, pred, look, origin=(c0, r0), iterations=rounds, avoid_contact=crossing,
-               tol_px=tol, tip_ratio=held)
+               tol_px=settings.fast_tol_px if len(history) >= 2 else tol, tip_ratio=held)
     stage = "crossing" if crossing else "fast"
     work = crop.size / frame.size
     whole = (r0, r1, c0, c1) == (0, frame.shape[0], 0, frame.shape[1])

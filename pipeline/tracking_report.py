@@ -152,7 +152,7 @@ def _sweep_settings() -> dict:
         "1 round": TrackSettings(rounds=1),
         "2 rounds": TrackSettings(rounds=2),
         "5 rounds": TrackSettings(rounds=5),
-        "tol 0.1 px": TrackSettings(tol_px=0.1),
+        "fast tol 0.02 px": TrackSettings(fast_tol_px=0.02),
         "coarse spline": TrackSettings(widths_per_coef=1.5),
     }
 
@@ -275,7 +275,8 @@ def settings_section(sweep: pd.DataFrame, speed: pd.DataFrame) -> list[str]:
         "#3 blurred, with few photons; `overcurl` = sample #3 made softer, curling past a "
         "turn over itself) tracked under several `pipeline.track.TrackSettings`: the "
         "fast path's Gauss–Newton rounds (and the rounds on the frame after a start), "
-        "the convergence tolerance `tol_px`, and the spline's spacing in tube widths per "
+        "the convergence tolerance `tol_px` (and, in brackets, the fast path's "
+        "`fast_tol_px`), and the spline's spacing in tube widths per "
         "coefficient while the section joints are not known (and, in brackets, once they "
         "are: given by a sample, or found in the frames). Each cell: p95 |bend-angle "
         "error| · frames/s after the first frame (decoding included; each frame's best "
@@ -294,7 +295,7 @@ def settings_section(sweep: pd.DataFrame, speed: pd.DataFrame) -> list[str]:
             cells.append(f"{_fmt(r.angle_p95_deg)}° · {r.frames_per_s:.0f}{lost}")
         label = f"**{name}**" if first.is_default else name
         lines.append(f"| {label} | {int(first.rounds)} ({int(first.first_rounds)}) "
-                     f"| {first.tol_px:g} | {first.widths_per_coef:g} "
+                     f"| {first.tol_px:g} ({first.fast_tol_px:g}) | {first.widths_per_coef:g} "
                      f"({first.jointed_widths_per_coef:g}) | "
                      + " | ".join(cells) + " |")
     default = sweep[sweep["is_default"]].set_index("scene")
@@ -328,7 +329,8 @@ def settings_section(sweep: pd.DataFrame, speed: pd.DataFrame) -> list[str]:
         f"{fast_ratio:.1f}× the default's frames/s (worst p95 over the scenes "
         f"{fast_p95:.2f}°, against {default['angle_p95_deg'].max():.2f}°). The default — "
         f"**{int(d.rounds)} rounds ({int(d.first_rounds)} after a start), tol "
-        f"{d.tol_px:g} px, one coefficient per {d.widths_per_coef:g} widths "
+        f"{d.tol_px:g} px ({d.fast_tol_px:g} px on the fast path), one coefficient per "
+        f"{d.widths_per_coef:g} widths "
         f"({d.jointed_widths_per_coef:g} once the joints are known)** — stays, "
         "and every other figure here uses it: "
         + (f"{fewest} would be about as accurate here and faster, but "

@@ -26,6 +26,7 @@ def _frames():
 @pytest.mark.parametrize("field, value", [
     ("rounds", 0), ("rounds", 2.5), ("rounds", True), ("rounds", "3"),
     ("first_rounds", -1), ("tol_px", 0.0), ("tol_px", -0.1), ("tol_px", float("nan")),
+    ("fast_tol_px", 0.0), ("fast_tol_px", float("nan")),
     ("widths_per_coef", float("inf")), ("widths_per_coef", "0.75"),
     ("jointed_widths_per_coef", 0.0), ("jointed_widths_per_coef", float("nan")),
 ])
@@ -68,4 +69,27 @@ def test_settings_reach_the_tracker_and_run_json(tmp_path):
                 settings=TrackSettings(rounds=1, tol_px=0.1))
     run = json.loads((tmp_path / "out" / "run.json").read_text())
     assert run["tracker_settings"] == {"rounds": 1, "first_rounds": 20, "tol_px": 0.1,
-                                       "widths_per_coef": 0.75, "jointed_widths_per_coef": 1.5}
+                                       "fast_tol_px": 0.1, "widths_per_coef": 0.75,
+                                       "jointed_widths_per_coef": 1.5}
+
+
+def test_the_fast_path_stops_at_its_own_tolerance_and_the_searches_at_theirs(monkeypatch):
+    import pipeline.track as T
+
+    seen = []
+    refine = T.refine
+
+    def recording(*args, **kwargs):
+        seen.append((kwargs.get("iterations"), kwargs.get("tol_px"), kwargs.get("origin")))
+        return refine(*args, **kwargs)
+
+    monkeypatch.setattr(T, "refine", recording)
+    settings = TrackSettings(tol_px=0.03, fast_tol_px=0.3)
+    results = list(track_frames(_frames(), settings=settings))
+    assert all(r.ok for r in results)
+    # the fast path refines on a crop (its origin given) from the prediction:
+    # with a velocity (from the third frame on) at fast_tol_px
+    fast = [tol for rounds, tol, origin in seen if origin is not None and rounds == 3]
+    assert fast and set(fast) == {0.3}
+    others = {tol for rounds, tol, origin in seen if origin is None}
+    assert others == {0.03}
