@@ -146,8 +146,10 @@ def _smooth_surface(thumb: np.ndarray, degree: int = 4, rounds: int = 6) -> np.n
     values = thumb.ravel()
     weights = np.ones_like(values)
     for _ in range(rounds):
-        sw = np.sqrt(weights)
-        coef = np.linalg.lstsq(design * sw[:, None], values * sw, rcond=None)[0]
+        # the weighted normal equations (15 unknowns: well conditioned on [-1, 1]²),
+        # a third of the time of an SVD least squares of the 12 000 rows
+        weighted = design * weights[:, None]
+        coef = np.linalg.solve(weighted.T @ design, weighted.T @ values)
         resid = values - design @ coef
         scale = 1.4826 * np.median(np.abs(resid[weights > 0])) + 1e-9
         u = resid / (4.685 * scale)

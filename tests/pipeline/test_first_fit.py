@@ -202,3 +202,14 @@ def test_the_base_tangent_fit_keeps_a_curled_tube():
     assert r.valid_fraction >= 0.8
     assert abs(np.degrees(r.curve.base_angle) - 300.0 + 360.0 * round(
         (np.degrees(r.curve.base_angle) - 300.0) / 360.0)) < 2.0
+
+
+def test_the_background_surface_follows_the_illumination_not_the_tube():
+    """The robust polynomial through a thumbnail: uneven light (a quartic
+    gradient) is followed into the corners, a dark tube across it is not."""
+    rows, cols = np.mgrid[0:96, 0:128]
+    x, y = cols / 127 * 2 - 1, rows / 95 * 2 - 1
+    light = 0.6 + 0.1 * x - 0.05 * y + 0.04 * x * y + 0.03 * x**4
+    tube = np.where(np.abs(y - 0.3 * x) < 0.06, -0.3, 0.0)
+    surface = segment._smooth_surface(light + tube)
+    assert np.abs(surface - light).max() < 2e-3
