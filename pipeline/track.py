@@ -807,11 +807,20 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
         search = bool(history) and abs(history[-1].coef[-1]) >= search_from
         typical = (float(np.median(residuals))
                    if history and len(residuals) >= RESIDUAL_JUMP_FRAMES else None)
-        result = _track_one(index, frame, look, history, held_base, base_end, det, settings,
+        # a restart finds the base afresh, at the end of the tube nearest the one
+        # held before (so that the ends cannot swap); only --base fixes it
+        restart_end = held_base if base_hint is None and held_base is not None else base_end
+        result = _track_one(index, frame, look, history, base_hint, restart_end, det, settings,
                             known, search, tip_ratio, widths, typical)
         if isinstance(result, tuple):  # (re)initialised: a new look, a new history
             old_look, (result, look) = look, result
             history, residuals = [], []
+            if pending is not None:
+                # the base is voted on by this start's frames: an earlier start,
+                # lost since, may have been on something else (a curl's first
+                # frames taken for a short tube: its votes put the base 58 px
+                # into the pipette of a video that starts curled past a turn)
+                votes = _BaseVotes()
             if old_look is not None and old_look.shear is not None and look.polarity == 0:
                 look = replace(look, shear=old_look.shear)  # the microscope's, not the tube's
             if old_look is not None and old_look.end_clear:
@@ -820,8 +829,8 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
                 look = replace(look, end_step_px=old_look.end_step_px,
                                end_step_offset=old_look.end_step_offset)
             if base_hint is None and held_base is not None and result.base_source:
-                # the restart was given the base found before, not the user's --base
-                result = replace(result, base_source="kept from an earlier frame")
+                result = replace(result, base_source=result.base_source
+                                 + " (at the end nearest the base of an earlier frame)")
         if search and result.ok:
             search_from = JOINT_CHECK_GROWTH * abs(result.tracked.coef[-1])
         if result.ok and result.curve.joints != (known or ()):

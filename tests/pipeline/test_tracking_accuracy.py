@@ -241,6 +241,43 @@ def test_a_video_that_starts_curled_past_300_deg_meets_the_spec(tmp_path):
     _assert_meets_spec(errors, acc)
 
 
+def test_a_video_that_starts_curled_over_itself_finds_its_base_at_the_restart(tmp_path):
+    """The committed over-curl scene played backwards: it starts curled 440 deg
+    over itself. Its first frames were taken for a short tube (169 px of the
+    578) and tracked "ok" until lost; the restart 20 frames on was given that
+    start's base, and the base votes counted that start's frames: the base sat
+    58 px into the pipette and every angle was 24 deg off. A restart finds the
+    base afresh (at the end nearest the earlier one) and the votes are this
+    start's own: every frame measured meets the spec, the base within 1 px."""
+    import tifffile
+
+    from pipeline.frames import open_frames
+
+    src = SAMPLE_FRAMES / "overcurl"
+    record = json.loads((src / S.SCENE_FILE).read_text(encoding="utf-8"))
+    with open_frames(src / record["frames_file"]) as reader:
+        frames = np.stack(list(reader))[::-1]
+    scene_dir = tmp_path / "scene"
+    scene_dir.mkdir()
+    tifffile.imwrite(scene_dir / "frames.tif", frames)
+    last = len(frames) - 1
+    for name in (S.TRUTH_TRACKS_FILE, S.TRUTH_CENTRELINES_FILE):
+        truth = pd.read_csv(src / name)
+        truth[S.FRAME] = last - truth[S.FRAME]
+        truth.sort_values(S.FRAME, kind="stable").to_csv(scene_dir / name, index=False)
+    record["frames_file"] = "frames.tif"
+    (scene_dir / S.SCENE_FILE).write_text(json.dumps(record), encoding="utf-8")
+    errors, acc, tracks, truth = _track(scene_dir, tmp_path / "tracked", "over-curl backwards")
+    assert truth[S.BEND].iloc[0] > 400
+    measured = errors[errors[S.STATUS] == S.STATUS_OK]
+    assert len(measured) >= 0.9 * len(errors)
+    assert acc.angle_median <= ANGLE_MEDIAN_DEG and acc.angle_p95 <= ANGLE_P95_DEG
+    assert acc.angle_max <= ANGLE_MAX_DEG
+    assert acc.centreline_rms_px <= CENTRELINE_RMS_PX
+    assert acc.length_error_max_pct <= LENGTH_ERROR_PCT
+    assert acc.base_error_max_px < 1.0
+
+
 @pytest.mark.parametrize("failed_starts", [1, 2])
 def test_frames_before_the_tracker_could_start_are_tracked_backwards(tmp_path, monkeypatch,
                                                                      failed_starts):
