@@ -1154,12 +1154,11 @@ def _base_step(image, starts, phi, hw: float, look: TubeLook, step: float):
         return None, False
     # best step from "not the tube" to "the tube": two-level least-squares fit
     n = score.size
-    k = np.arange(1, n)
     sse, mean_before, mean_after = two_level_fit(score)
     sse = np.where(mean_after > mean_before, sse, np.inf)
     if not np.isfinite(sse).any():
         return None, False
-    best = int(k[np.argmin(sse)])
+    best = int(np.argmin(sse)) + 1  # (split k puts score[:k] before: sse[k - 1])
     if edges.valid.all() and mean_before[best - 1] > BASE_STEP_CLAD * mean_after[best - 1]:
         # the tube is seen behind as well, as strongly: nothing steps there
         return None, False

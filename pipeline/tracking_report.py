@@ -77,20 +77,20 @@ def _on_one_cpu(code: str, *args):
     """Run ``code`` (which has ``json`` and ``sys`` imported, and prints one
     JSON document) in a fresh Python held to one CPU from its start where the
     system can pin a process (else on all); its document."""
-    cpu = min(os.sched_getaffinity(0)) if hasattr(os, "sched_setaffinity") else None
-    done = subprocess.run(
-        [sys.executable, "-c", "import json, sys; " + code, *map(str, args)],
-        capture_output=True, text=True, check=False,
-        preexec_fn=None if cpu is None else (lambda: os.sched_setaffinity(0, {cpu})))
-    if done.returncode:
-        last = (done.stderr.strip().splitlines() or ["no message"])[-1]
-        raise RuntimeError(f"the speed benchmark failed: {last}")
+    done, _ = _python_on_one_cpu(["-c", "import json, sys; " + code, *args])
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
 def _timed_process(args) -> float:
     """Wall time of ``python ARGS`` in a fresh process held to one CPU where the
     system can pin one, s."""
+    return _python_on_one_cpu(args)[1]
+
+
+def _python_on_one_cpu(args):
+    """``python ARGS`` in a fresh process held to one CPU from its start where
+    the system can pin one: the finished process and its wall time, s; a
+    RuntimeError with its last line of stderr if it failed."""
     cpu = min(os.sched_getaffinity(0)) if hasattr(os, "sched_setaffinity") else None
     start = time.perf_counter()
     done = subprocess.run(
@@ -100,7 +100,7 @@ def _timed_process(args) -> float:
     if done.returncode:
         last = (done.stderr.strip().splitlines() or ["no message"])[-1]
         raise RuntimeError(f"the speed benchmark failed: {last}")
-    return elapsed
+    return done, elapsed
 
 
 def _time_track(video, out) -> dict:
