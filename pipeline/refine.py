@@ -31,7 +31,7 @@ from .profiles import FADED_COS, Edges, edge_pairs, end_edge, sample_lines, samp
 from .steps import two_level_fit
 
 #: Each edge profile is the mean of this many parallel lines, spread over
-#: ±:data:`STRIP_HALF_PX` along the tube. The profiles lie 2–12 px apart,
+#: ±1 px along the tube. The profiles lie 2–12 px apart,
 #: so a single line leaves most of the pixels between them unread; averaging
 #: three lines over ±1 px cuts the noise of each midpoint by up to √3. Measured
 #: on 132 rendered scenes (five sets, none of them the tests'): scenes meeting
@@ -39,7 +39,9 @@ from .steps import two_level_fit
 #: 0.44 → 0.41° on 32 scenes, 0.41 → 0.34° on the report's 27); five lines over
 #: ±1.5 px were worse on two sets of the five.
 STRIP_LINES = 3
-STRIP_HALF_PX = 1.0
+#: ... 1 px apart: the lines of a longer strip (:attr:`TubeLook.strip_lines`)
+#: keep this spacing.
+STRIP_STEP_PX = 1.0
 #: The stretches at the tube's end, in half-widths, over which a fit measures
 #: how far the edge midpoints there step sideways from the line the rest of
 #: the tube gives (:attr:`Refined.end_steps`, :attr:`TubeLook.end_step_px`).
@@ -78,7 +80,8 @@ BASE_STEP_CLAD = 0.5
 #: Edge-midpoint scatter (px) up to which the roughness penalty keeps its
 #: nominal weight; noisier frames get it scaled by (scatter / this)². Set
 #: as 0.05 px for single-line profiles: the strips' scatter is √STRIP_LINES
-#: lower for the same frame, and the reference with it.
+#: lower for the same frame, and the reference with it (√ of a longer strip's
+#: lines, :func:`noise_ref_px`).
 NOISE_REF_PX = 0.05 / np.sqrt(STRIP_LINES)
 #: In a relief image a profile whose direction is this close to square with
 #: the shear (|cos| below it) sees the tube's edges at under this fraction of
@@ -213,6 +216,11 @@ class TubeLook:
         (independent renderer: 3.0 deg median on a tube 7 px wide, 0.8 with
         the stretch left out; three tubes 9-15 px wide from 0.8-1.5 to
         0.1-0.5 deg).
+    strip_lines : int
+        How many parallel lines, :data:`STRIP_STEP_PX` apart along the tube,
+        each edge profile averages (:data:`STRIP_LINES`; more on a frame
+        whose noise hides the tube's edges, see
+        :func:`pipeline.track.edge_scale`).
     end_step_offset : float
         How far the stretch's midpoints sat off the rest's line on the frames
         that told it, px (along the curve's left normal): reported only (a
@@ -228,6 +236,12 @@ class TubeLook:
     end_clear: bool = False
     end_step_px: float | None = 0.0
     end_step_offset: float = 0.0
+    strip_lines: int = STRIP_LINES
+
+    @property
+    def strip_half_px(self) -> float:
+        """How far along the tube each profile's strip reaches either side, px."""
+        return 0.5 * (self.strip_lines - 1) * STRIP_STEP_PX
 
     def facing(self, normals: np.ndarray):
         """Which way a relief's edges step along profiles in the directions
@@ -442,7 +456,11 @@ def profile_spacing(half_width: float) -> float:
 def _profile_layout(curve: Curve, look: TubeLook, n_grid: int, window: float, width_tol: float,
                     clear: float = 2.0):
     hw = look.mean_half_width
-    spacing = profile_spacing(hw)
+    # a longer strip's profiles lie no nearer than it is long: overlapping
+    # strips share their noise, and the midpoints' scatter from one profile to
+    # the next, which the fit is judged against, would understate it (rendered
+    # scenes at 8 % contrast: 7 -> 0 frames lost on one, a p95 14.6 -> 2.7 deg)
+    spacing = max(profile_spacing(hw), 2.0 * look.strip_half_px)
     start = 0.25 * hw / curve.length
     # up to the end: a profile across a flat end still meets both side edges,
     # and one across a rounded end has the wrong width and is dropped
@@ -453,11 +471,19 @@ def _profile_layout(curve: Curve, look: TubeLook, n_grid: int, window: float, wi
     return (idx, *_profile_offsets(hw, window, width_tol))
 
 
-def _strip_shifts(s: np.ndarray, length: float, clear: float = 2.0) -> np.ndarray:
-    """Where each profile's parallel lines lie along the tube, px from it:
-    ±:data:`STRIP_HALF_PX`, pulled in where that would reach past the base or
-    to within ``clear`` px of the tube's end (the end face is no side edge)."""
-    shifts = np.linspace(-STRIP_HALF_PX, STRIP_HALF_PX, STRIP_LINES)
+def noise_ref_px(lines: int = STRIP_LINES) -> float:
+    """:data:`NOISE_REF_PX` for strips of ``lines`` lines, px."""
+    return 0.05 / float(np.sqrt(lines))
+
+
+def _strip_shifts(s: np.ndarray, length: float, clear: float = 2.0,
+                  lines: int = STRIP_LINES) -> np.ndarray:
+    """Where each profile's ``lines`` parallel lines lie along the tube, px
+    from it: :data:`STRIP_STEP_PX` apart about it, pulled in where that would
+    reach past the base or to within ``clear`` px of the tube's end (the end
+    face is no side edge)."""
+    half = 0.5 * (lines - 1) * STRIP_STEP_PX
+    shifts = np.linspace(-half, half, lines)
     return np.clip(shifts[None, :], -s[:, None],
                    np.maximum(length - clear - s, 0.0)[:, None])
 
@@ -541,7 +567,8 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
     idx, offsets, step = _profile_layout(curve, look, basis.n_grid, window, width_tol, clear)
     u = basis.u[idx]
     hw_u = look.half_width_at(u)
-    strips = _strip_shifts(u * curve.length, curve.length, clear)
+    strips = _strip_shifts(u * curve.length, curve.length, clear, look.strip_lines)
+    noise_ref = noise_ref_px(look.strip_lines)
     end_offset = np.nan
     k = curve.coef.size
     n_extra = 2 if free_base else 0
@@ -573,7 +600,9 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
                            width_tol=width_tol, min_strength=min_strength)
         dropped = np.zeros(idx.size, bool)
         if avoid_contact:
-            dropped = contact_mask(smp.z, idx, reach=hw * (2 + width_tol) + window + 2.0,
+            # (the 2 px spare also holds the default strips' ±1 px)
+            dropped = contact_mask(smp.z, idx, reach=hw * (2 + width_tol) + window + 2.0
+                                   + max(look.strip_half_px - STRIP_STEP_PX, 0.0),
                                    gap=basis.u[1] * curve.length, normals=normals,
                                    half_width=hw)
         if shown is None and look.polarity == 0:
@@ -644,7 +673,7 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
             # noise, measured: second differences) also counts what the fit cannot
             # yet follow, which keeps a tip bridged over a crossing stiffer (over-
             # curl scene: max error 3.9° against 10.8°)
-            pen *= max(sig / NOISE_REF_PX, 1.0) ** 2
+            pen *= max(sig / noise_ref, 1.0) ** 2
         rough = basis.roughness + tip_stiffness * tip_rough
         lhs[:k, :k] += pen * rough
         rhs[:k] -= pen * rough @ curve.coef

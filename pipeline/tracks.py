@@ -30,6 +30,8 @@ from .refine import (
     END_CLEAR_HW,
     END_STEP_LEAVE_OUT,
     END_STEP_LEAVE_OUT_MAX_PX,
+    STRIP_LINES,
+    STRIP_STEP_PX,
     end_step_left_out,
 )
 from .segment import AMBIGUOUS_BASE, detect
@@ -38,6 +40,7 @@ from .track import (
     EDGE_SCALES,
     JOINT_CHECK_DEG,
     SNR_TARGET,
+    STRIP_SNR,
     FrameTrack,
     TrackSettings,
     as_float,
@@ -304,6 +307,9 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
     notes.append(ratio_note)
     notes.append(_look_note(results))
     notes.append(_smoothing_note(results, binning))
+    strips_note = _strips_note(results, binning)
+    if strips_note:
+        notes.append(strips_note)
     notes.append(_end_note(results))
     step_note = _end_step_note(results)
     if step_note:
@@ -572,8 +578,9 @@ def _notes(results, stages, base_given: bool, rate) -> list[str]:
                      (f" ({why})" if k else " (never needed)"))
     k = stages.get("backward", 0)
     if k:
-        notes.append(f"tracked backwards on {k} of {n} frames (lost on the way forward, before "
-                     "a later frame started the tracker; found from that frame's shape)")
+        notes.append(f"tracked backwards on {k} of {n} frames (lost on the way forward before "
+                     "a later frame started the tracker, or among the first frames bent away "
+                     "from the frames either side and back; found from the next frame's shape)")
     if base_given:
         notes.append("base given: automatic base search left out")
     if not rate:
@@ -685,6 +692,19 @@ def _smoothing_note(results, binning: Binning) -> str:
         return f"edge profiles smoothed over {chosen[0]:g} {px}, not the narrowest: {why}"
     where = ", ".join(f"{s:g}" for s in chosen)
     return f"edge profiles smoothed over {where} {px}, chosen afresh at each start: wider {why}"
+
+
+def _strips_note(results, binning: Binning) -> str | None:
+    """How many lines each edge profile averaged, where more than the usual
+    (None where every start kept :data:`STRIP_LINES`)."""
+    lines = sorted({r.strip_lines for r in results if r.strip_lines > STRIP_LINES})
+    if not lines:
+        return None
+    px = "binned px" if binning else "px"
+    where = " or ".join(f"{n} (±{0.5 * (n - 1) * STRIP_STEP_PX:g} {px})" for n in lines)
+    return (f"each edge profile averaged {where} parallel lines along the tube, not "
+            f"{STRIP_LINES}: even the widest smoothing left the tube's edges under "
+            f"{STRIP_SNR:g}x the noise of {STRIP_LINES} lines")
 
 
 def _run_record(run: TrackRun, source, rate, results, settings: TrackSettings) -> dict:

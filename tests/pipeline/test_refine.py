@@ -10,8 +10,8 @@ from pipeline.centreline import (
     tip_point,
 )
 from pipeline.refine import (
-    STRIP_HALF_PX,
     STRIP_LINES,
+    STRIP_STEP_PX,
     TubeLook,
     _strip_shifts,
     contact_mask,
@@ -214,6 +214,9 @@ def test_locate_base_follows_a_bent_tube_past_a_long_run_of_pipette():
     assert abs(tip_point(found) - z[-1]) < 1.0
 
 
+STRIP_HALF_PX = 0.5 * (STRIP_LINES - 1) * STRIP_STEP_PX
+
+
 def test_strips_shorten_at_the_ends_of_the_tube():
     s = np.array([0.0, 0.4, 5.0, 97.5, 98.0, 100.0])
     shifts = _strip_shifts(s, 100.0)
@@ -224,6 +227,11 @@ def test_strips_shorten_at_the_ends_of_the_tube():
     assert (s[:, None] + shifts <= np.maximum(98.0, s)[:, None]).all()
     assert np.allclose(shifts[0], [0.0, 0.0, STRIP_HALF_PX])
     assert np.allclose(shifts[4], [-STRIP_HALF_PX, 0.0, 0.0])
+    # a longer strip keeps its lines 1 px apart, and is cut short the same way
+    long = _strip_shifts(s, 100.0, lines=9)
+    assert np.allclose(long[2], np.arange(-4, 5) * STRIP_STEP_PX)
+    assert np.allclose(long[1], np.clip(np.arange(-4, 5), -0.4, 4))
+    assert (s[:, None] + long <= np.maximum(98.0, s)[:, None]).all()
 
 
 def test_self_contact_is_seen_only_when_the_tube_meets_itself():
