@@ -77,12 +77,11 @@ BASE_STEP_VALID = 0.5
 #: a base step stands only where the pairs' mean strength behind it is at
 #: most this fraction of theirs past it (:func:`locate_base`).
 BASE_STEP_CLAD = 0.5
-#: Edge-midpoint scatter (px) up to which the roughness penalty keeps its
-#: nominal weight; noisier frames get it scaled by (scatter / this)². Set
-#: as 0.05 px for single-line profiles: the strips' scatter is √STRIP_LINES
-#: lower for the same frame, and the reference with it (√ of a longer strip's
-#: lines, :func:`noise_ref_px`).
-NOISE_REF_PX = 0.05 / np.sqrt(STRIP_LINES)
+#: Edge-midpoint scatter (px) of single-line profiles up to which the
+#: roughness penalty keeps its nominal weight; noisier frames get it scaled by
+#: (scatter / reference)². A strip's scatter is √ its lines lower for the same
+#: frame, and the reference with it (:func:`noise_ref_px`).
+NOISE_REF_LINE_PX = 0.05
 #: In a relief image a profile whose direction is this close to square with
 #: the shear (|cos| below it) sees the tube's edges at under this fraction of
 #: their full step: the tube fades there, and such profiles neither pull the
@@ -241,7 +240,7 @@ class TubeLook:
     @property
     def strip_half_px(self) -> float:
         """How far along the tube each profile's strip reaches either side, px."""
-        return 0.5 * (self.strip_lines - 1) * STRIP_STEP_PX
+        return strip_half_px(self.strip_lines)
 
     def facing(self, normals: np.ndarray):
         """Which way a relief's edges step along profiles in the directions
@@ -472,8 +471,15 @@ def _profile_layout(curve: Curve, look: TubeLook, n_grid: int, window: float, wi
 
 
 def noise_ref_px(lines: int = STRIP_LINES) -> float:
-    """:data:`NOISE_REF_PX` for strips of ``lines`` lines, px."""
-    return 0.05 / float(np.sqrt(lines))
+    """The roughness penalty's scatter reference for strips of ``lines``
+    lines (:data:`NOISE_REF_LINE_PX` over √lines), px."""
+    return NOISE_REF_LINE_PX / float(np.sqrt(lines))
+
+
+def strip_half_px(lines: int = STRIP_LINES) -> float:
+    """How far along the tube a strip of ``lines`` lines reaches either side
+    of its profile, px."""
+    return 0.5 * (lines - 1) * STRIP_STEP_PX
 
 
 def _strip_shifts(s: np.ndarray, length: float, clear: float = 2.0,
@@ -482,7 +488,7 @@ def _strip_shifts(s: np.ndarray, length: float, clear: float = 2.0,
     from it: :data:`STRIP_STEP_PX` apart about it, pulled in where that would
     reach past the base or to within ``clear`` px of the tube's end (the end
     face is no side edge)."""
-    half = 0.5 * (lines - 1) * STRIP_STEP_PX
+    half = strip_half_px(lines)
     shifts = np.linspace(-half, half, lines)
     return np.clip(shifts[None, :], -s[:, None],
                    np.maximum(length - clear - s, 0.0)[:, None])
@@ -530,8 +536,8 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
         by the trace of both): it damps the poorly observed wobble of the
         last spline span, which would otherwise turn tiny edge noise near the
         tip into tip-angle noise, and leaves arcs of constant curvature alone.
-        Scaled up by (σ / NOISE_REF_PX)² when the edge midpoints scatter by
-        σ > NOISE_REF_PX (robust estimate on each round).
+        Scaled up by (σ / ref)² when the edge midpoints scatter by σ > ref
+        (robust estimate on each round; ref from :func:`noise_ref_px`).
     tip_stiffness : float
         Extra weight, relative to ``smoothing``, of the roughness over the last
         :data:`TIP_STIFF_WIDTHS` tube widths, or :data:`TIP_STIFF_MIN_PX` if

@@ -233,7 +233,7 @@ BASE_SMOOTHING = 0.1
 #: The same for the first of those fits, from the skeleton. There the scatter of
 #: the edge midpoints about the curve is mostly the skeleton's misfit, which
 #: averaging strips of lines does not lower: divided by the strips' lines to
-#: undo their lower noise reference (:data:`pipeline.refine.NOISE_REF_PX`). At
+#: undo their lower noise reference (:func:`pipeline.refine.noise_ref_px`). At
 #: the full weight, a blurred MJPG scene lost its first frame (the fit bent 8 px
 #: off at the base).
 SKELETON_SMOOTHING = BASE_SMOOTHING / STRIP_LINES

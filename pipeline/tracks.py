@@ -31,8 +31,8 @@ from .refine import (
     END_STEP_LEAVE_OUT,
     END_STEP_LEAVE_OUT_MAX_PX,
     STRIP_LINES,
-    STRIP_STEP_PX,
     end_step_left_out,
+    strip_half_px,
 )
 from .segment import AMBIGUOUS_BASE, detect
 from .static_mask import MARGIN_PX, static_mask
@@ -701,7 +701,7 @@ def _strips_note(results, binning: Binning) -> str | None:
     if not lines:
         return None
     px = "binned px" if binning else "px"
-    where = " or ".join(f"{n} (±{0.5 * (n - 1) * STRIP_STEP_PX:g} {px})" for n in lines)
+    where = " or ".join(f"{n} (±{strip_half_px(n):g} {px})" for n in lines)
     return (f"each edge profile averaged {where} parallel lines along the tube, not "
             f"{STRIP_LINES}: even the widest smoothing left the tube's edges under "
             f"{STRIP_SNR:g}x the noise of {STRIP_LINES} lines")
