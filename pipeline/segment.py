@@ -519,10 +519,33 @@ def detect(image: np.ndarray, *, base_hint=None, base_end=None) -> Detection | N
             break
         wide = _detect_at(image, coarse * f, base_hint, base_end)
         if wide is not None and (det is None or (
-                wide.length >= COARSE_LENGTH * det.length
-                and det.half_width < OUTLINE_WIDER * wide.half_width)):
+                det.half_width < OUTLINE_WIDER * wide.half_width
+                and (wide.length >= COARSE_LENGTH * det.length or _rims_of(det, wide)))):
             det = wide
     return det
+
+
+#: A thin structure is taken for the rims of a wider tube found coarser when at
+#: least RIM_INSIDE of its points lie within RIM_REACH half-widths of that
+#: tube's centreline, and half of them at least RIM_OFF half-widths off it.
+RIM_INSIDE = 0.9
+RIM_REACH = 1.25
+RIM_OFF = 0.5
+
+
+def _rims_of(thin: Detection, wide: Detection) -> bool:
+    """Whether ``thin`` runs along the walls of ``wide``: a hollow tube's rims.
+
+    A faint transparent tube shows only its rims at the working scale, and when
+    no closing joins them (rims a few px thick, far apart) the skeleton runs up
+    one rim, round the tip and back down the other: twice the tube's length, so
+    the whole tube found coarser looks short beside it (a 28 px wide tube: 637
+    px of rims for a 340 px tube).
+    """
+    # distance of each thin point to the wide centreline's nearest point
+    # (paths of a few hundred points: the full distance matrix is small)
+    off = np.abs(thin.path[:, None] - wide.path[None, :]).min(axis=1) / wide.half_width
+    return bool(np.mean(off <= RIM_REACH) >= RIM_INSIDE and np.median(off) >= RIM_OFF)
 
 
 def _detect_at(image: np.ndarray, f: int, base_hint, base_end) -> Detection | None:

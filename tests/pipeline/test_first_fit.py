@@ -131,6 +131,54 @@ def test_rims_that_join_over_two_closings_still_fill_the_tube(sample, angle, loo
     assert det.half_width >= 0.8 * outer_um / renderer.layout.um_per_px
 
 
+@pytest.mark.parametrize("sample", [2, 3])
+def test_rims_no_closing_joins_are_taken_for_the_tube_found_coarser(sample):
+    """A faint transparent tube (12 % contrast, read noise 1.5 %) whose rims
+    come out of the mask 2-4 px thick and 20 px apart: the closing that joins
+    them gives a width under 2.5x its radius, so none counts as filling the
+    tube, and the skeleton ran up one rim, round the tip and back down the
+    other (1.6-1.9x the tube's length, a rim's width). The whole tube found at
+    half the scale, half that length, was refused for being shorter; it is now
+    taken, as the thin path runs along its walls."""
+    look = {"name": "low_contrast", "contrast": 0.12, "read_noise": 0.015, "photons": 0.0,
+            "dust": 0}
+    scene = default_scene(sample, n_frames=8, seed=2, width=480, height=360, look=look)
+    renderer = Renderer(scene)
+    _, lines, _ = truth_tables(scene, renderer.layout)
+    length = lines["s_um"].max() / renderer.layout.um_per_px
+    image = renderer.frame(0)
+    fine = segment._detect_at(image, segment.working_scale(image.shape), None, None)
+    assert fine.length > 1.5 * length and fine.half_width < segment.THIN_HALF_WIDTH
+    det = segment.detect(image)
+    assert 0.95 * length <= det.length <= 1.1 * length
+    first = lines[lines["frame"] == 0]
+    scale = renderer.layout.um_per_px
+    z = from_image(first["x_um"].to_numpy() / scale, -first["y_um"].to_numpy() / scale)
+    near = np.min(np.abs(det.path[:, None] - z[None, ::4]), axis=1)
+    assert np.median(near) <= 2.5
+    tube = get_sample(sample)
+    outer_um = min(tube.r_in_um + 0.5 * (x.t_top_um + x.t_bot_um) for x in tube.sections)
+    assert det.half_width >= 0.8 * outer_um / scale
+
+
+def test_a_thin_path_is_the_rims_of_a_tube_only_when_it_runs_along_its_walls():
+    """:func:`segment._rims_of` on drawn paths: a path up one wall and down the
+    other is the tube's rims; the same tube's centreline, or a thin tube
+    coiled inside a wide blob, is not."""
+    wide = segment.Detection(np.linspace(0, 300, 151) + 0j, 0j, 0.0, 14.0, "drawn")
+
+    def thin(path):
+        return segment.Detection(path, complex(path[0]), 0.0, 2.0, "drawn")
+
+    up = np.linspace(0, 305, 300) + 12j
+    rims = np.concatenate([up, 305 + 12j * np.cos(np.linspace(0, np.pi, 20)), up[::-1] - 24j])
+    assert segment._rims_of(thin(rims), wide)
+    assert not segment._rims_of(thin(np.linspace(0, 300, 300) + 1j), wide)
+    t = np.linspace(0, 6 * np.pi, 600)
+    coil = 150 + (3 + 2 * t) * np.exp(1j * t)
+    assert not segment._rims_of(thin(coil), wide)
+
+
 @pytest.mark.parametrize("seed", range(6))
 def test_skeleton_over_the_bounding_box_is_the_whole_frames_skeleton(seed):
     from skimage.morphology import skeletonize
