@@ -51,6 +51,12 @@ OUTLINE_LONGER = 1.25
 #: further follows a pipette's walls or the noise (a blurred, noisy pipette:
 #: the base 150 px off).
 OUTLINE_WIDER = 0.5
+#: ... or whatever its width, when the contrast found under 1/OUTLINE_SPAN of
+#: what the outline follows: a fragment of the tube, not the tube whole (a
+#: transparent tube on a mottled background, 104 px of its 790 found by its
+#: contrast, then drawn 290 px straight to the base given it: its outline,
+#: the whole tube, was refused for its width and the frame lost).
+OUTLINE_SPAN = 2.5
 #: The outline's thresholds are multiples of the background's median gradient,
 #: but of at least this fraction of the strongest edges' (99.9th percentile).
 #: A noise-free MJPG frame of a sharp, dim fluorescent tube has a median
@@ -86,6 +92,9 @@ class Detection:
         Rough outer half-width of the tube, px.
     base_source : str
         How the base was found (pipette width step, image border, given …).
+    bridged_px : float
+        How much of :attr:`path` was not found but drawn straight from a
+        given base to the tube found off it, px (0 if none).
     """
 
     path: np.ndarray
@@ -93,6 +102,12 @@ class Detection:
     base_angle: float
     half_width: float
     base_source: str
+    bridged_px: float = 0.0
+
+    @property
+    def found_length(self) -> float:
+        """Length of :attr:`path` that was found in the frame, px."""
+        return self.length - self.bridged_px
 
     @property
     def length(self) -> float:
@@ -520,7 +535,7 @@ def detect(image: np.ndarray, *, base_hint=None, base_end=None) -> Detection | N
         wide = _detect_at(image, coarse * f, base_hint, base_end)
         if wide is not None and (det is None or (
                 det.half_width < OUTLINE_WIDER * wide.half_width
-                and (wide.length >= COARSE_LENGTH * det.length or _rims_of(det, wide)))):
+                and (wide.length >= COARSE_LENGTH * det.found_length or _rims_of(det, wide)))):
             det = wide
     return det
 
@@ -556,11 +571,21 @@ def _detect_at(image: np.ndarray, f: int, base_hint, base_end) -> Detection | No
     # mostly in its sharp edges
     det = _detect_in(foreground(contrast), f, base_hint, base_end)
     outline = _detect_in(outline_foreground(contrast), f, base_hint, base_end, outline=True)
-    if outline is not None and (det is None or (
-            outline.length > OUTLINE_LONGER * det.length
-            and det.half_width < OUTLINE_WIDER * outline.half_width)):
-        return outline
-    return det
+    return outline if _outline_wins(det, outline) else det
+
+
+def _outline_wins(det: Detection | None, outline: Detection | None) -> bool:
+    """Whether the tube found by its outline is taken over the one found by
+    its contrast (:data:`OUTLINE_LONGER`, :data:`OUTLINE_WIDER`,
+    :data:`OUTLINE_SPAN`); lengths are what each found in the frame, not what
+    was drawn to a given base."""
+    if outline is None:
+        return False
+    if det is None:
+        return True
+    return (outline.found_length > OUTLINE_LONGER * det.found_length
+            and (det.half_width < OUTLINE_WIDER * outline.half_width
+                 or outline.found_length > OUTLINE_SPAN * det.found_length))
 
 
 def _detect_in(mask: np.ndarray, f: int, base_hint, base_end, *,
@@ -659,6 +684,7 @@ def _detect_in(mask: np.ndarray, f: int, base_hint, base_end, *,
     tip_dir = pts[-1] - pts[max(0, len(pts) - 1 - max(2, int(half_width)))]
     if abs(tip_dir) > 0:
         pts = np.append(pts, pts[-1] + 0.9 * half_width_px * tip_dir / abs(tip_dir))
+    bridged = 0.0
     if base_hint is not None:
         # a tube that starts at the given base with no pipette in view: its
         # skeleton stops about a half-width short of that end, as of the tip's
@@ -674,9 +700,10 @@ def _detect_in(mask: np.ndarray, f: int, base_hint, base_end, *,
             n = int(np.ceil(abs(gap)))
             pts = np.concatenate([hint + gap * np.arange(n) / n, pts])
             base_angle = float(np.angle(gap))
+            bridged = abs(gap)
             source = (f"{source}; the tube's first {abs(gap):.0f} px did not stand out, "
                       "bridged straight to it")
         elif abs(gap) > 2.0 * half_width_px:
             source = (f"{source}; it lies {abs(gap):.0f} px from the tube found, off its line: "
                       "the base taken at the tube's nearest point")
-    return Detection(pts, complex(pts[0]), base_angle, half_width_px, source)
+    return Detection(pts, complex(pts[0]), base_angle, half_width_px, source, bridged)

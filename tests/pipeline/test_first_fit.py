@@ -179,6 +179,49 @@ def test_a_thin_path_is_the_rims_of_a_tube_only_when_it_runs_along_its_walls():
     assert not segment._rims_of(thin(coil), wide)
 
 
+def test_the_outline_wins_over_a_fragment_the_contrast_found_whatever_its_width():
+    """:func:`segment._outline_wins` on drawn detections. A transparent tube on
+    a mottled background: its contrast found 104 px of it (at the tube's own
+    width) and, given the base, drew 290 px straight to it; its outline
+    followed the whole tube. Judged by the drawn length, and refused for its
+    wider band, the outline lost, and 11 of 13 frames were lost with it
+    (independent scene a11). Where the contrast finds the tube whole, a
+    longer, wider outline (running on along a pipette's walls) still loses."""
+    def drawn(length, half_width, bridged=0.0):
+        path = np.linspace(0.0, length, int(length) + 1) + 0j
+        return segment.Detection(path, 0j, 0.0, half_width, "drawn", bridged)
+
+    fragment = drawn(394.0, 15.0, bridged=290.0)
+    assert fragment.found_length == pytest.approx(104.0)
+    outline = drawn(1080.0, 21.6)
+    assert segment._outline_wins(fragment, outline)
+    assert not segment._outline_wins(drawn(780.0, 15.0), drawn(1000.0, 21.6))
+    # a rim (narrow), or nothing, found by the contrast: the outline, as before
+    assert segment._outline_wins(drawn(780.0, 3.0), drawn(1000.0, 21.6))
+    assert segment._outline_wins(None, outline)
+    assert not segment._outline_wins(fragment, None)
+
+
+def test_a_detection_drawn_to_a_given_base_says_how_much_was_drawn():
+    """A tube whose first stretch did not stand out is carried straight back to
+    the base given (``--base``): what was drawn is kept apart from what was
+    found, so that the two detections of a frame are compared on what each
+    found."""
+    image, z = _first_frame(2, {"name": "transmitted", "texture": 0.05})
+    rr, cc = np.mgrid[0:image.shape[0], 0:image.shape[1]]
+    # a darker stretch from 40 % to 55 % of the tube: the contrast finds the
+    # tube from there on
+    stretch = z[int(0.4 * z.size):int(0.55 * z.size):3]
+    near = np.min(np.abs((cc - 1j * rr)[..., None] - stretch[None, None, :]), axis=-1) < 12
+    image = np.where(near, 0.7 * image, image).astype(np.float32)
+    found = segment.detect(image)
+    assert found.bridged_px == 0.0
+    given = segment.detect(image, base_hint=(z[0].real, -z[0].imag))
+    assert given.bridged_px > 50.0
+    assert abs(given.base - z[0]) < 1.0
+    assert given.found_length == pytest.approx(found.length, rel=0.05)
+
+
 @pytest.mark.parametrize("seed", range(6))
 def test_skeleton_over_the_bounding_box_is_the_whole_frames_skeleton(seed):
     from skimage.morphology import skeletonize
