@@ -67,8 +67,9 @@ OUTLINE_FLOOR = 50.0
 #: Where the working scale finds no tube, or one under THIN_HALF_WIDTH working
 #: pixels in half-width, the frame is searched again at these multiples of
 #: it, coarser (while that leaves at least COARSE_MIN_PX on its shorter side),
-#: and what that finds is taken when it is at least COARSE_LENGTH as long and
-#: over twice as wide (:data:`OUTLINE_WIDER`).
+#: and what that finds is taken when it is over twice as wide
+#: (:data:`OUTLINE_WIDER`) and at least COARSE_LENGTH as long as what the finer
+#: scale found, or shorter but run along by it (its rims, :func:`_rims_of`).
 COARSER = (2, 4)
 THIN_HALF_WIDTH = 3.0
 COARSE_MIN_PX = 64
