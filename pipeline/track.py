@@ -221,9 +221,9 @@ SNR_TARGET = 5.0
 #: renderer scene at 6 % contrast (a holder, a tube 17 px wide) it was 2.2 and
 #: the edge search followed the noise: every frame wrong or not measured ->
 #: median 1.46, p95 1.99 deg with 9 lines. On 24 rendered scenes at 8-12 %
-#: contrast in heavy noise (18 of them longer strips): frames lost 79 -> 60,
-#: 5 scenes from many frames lost to none, 2 from few to most (a tube 4.6 px
-#: wide, whose start went wrong).
+#: contrast in heavy noise (18 of them longer strips): frames lost 86 -> 67,
+#: 3 scenes from 7-8 frames lost to none, 2 from 0 and 5 to 7 (one a tube
+#: 4.6 px wide, whose start went wrong).
 STRIP_SNR = 4.0
 STRIP_MAX_HW = 0.5
 #: Roughness weight of the fits that measure the base tangent when the tracker
