@@ -161,6 +161,43 @@ def test_rims_no_closing_joins_are_taken_for_the_tube_found_coarser(sample):
     assert det.half_width >= 0.8 * outer_um / scale
 
 
+@pytest.mark.parametrize(("sample", "frame"), [(1, 0), (2, 2), (3, 3)])
+def test_thin_rims_no_blur_brings_out_are_found_along_their_own_direction(sample, frame):
+    """A transparent tube at 8 % contrast in 2.5 % read noise: its rims, a
+    pixel or two wide, stand at about 3x the noise of a pixel, and no scale
+    of the isotropic blur brings them out (nothing found at any scale: the
+    frame not measured). Averaged along their own direction they stand out,
+    and the tube is found on its centreline."""
+    look = {"name": "low_contrast", "contrast": 0.08, "read_noise": 0.025, "photons": 0.0,
+            "dust": 0}
+    scene = default_scene(sample, n_frames=8, seed=2, width=480, height=360, look=look)
+    renderer = Renderer(scene)
+    _, lines, _ = truth_tables(scene, renderer.layout)
+    image = renderer.frame(frame)
+    f = segment.working_scale(image.shape)
+    assert all(segment._detect_at(image, k * f, None, None) is None
+               for k in (1, *segment.COARSER))
+    det = segment.detect(image)
+    assert det is not None
+    truth = lines[lines["frame"] == frame]
+    scale = renderer.layout.um_per_px
+    z = from_image(truth["x_um"].to_numpy() / scale, -truth["y_um"].to_numpy() / scale)
+    length = truth["s_um"].max() / scale
+    assert 0.9 * length <= det.length <= 1.15 * length
+    off = np.min(np.abs(det.path[:, None] - z[None, ::2]), axis=1)
+    assert np.median(off) <= 1.5
+    covered = np.min(np.abs(z[::2, None] - det.path[None, :]), axis=1) < 5.0
+    assert covered.mean() >= 0.8
+
+
+def test_line_filters_find_nothing_in_noise_alone():
+    rng = np.random.default_rng(0)
+    for _ in range(3):
+        image = (0.6 + 0.02 * rng.standard_normal((360, 480))).astype(np.float32)
+        assert not segment.line_foreground(segment.contrast_image(image, 1)[0]).any()
+        assert segment.detect(image) is None
+
+
 def test_a_thin_path_is_the_rims_of_a_tube_only_when_it_runs_along_its_walls():
     """:func:`segment._rims_of` on drawn paths: a path up one wall and down the
     other is the tube's rims; the same tube's centreline, or a thin tube
