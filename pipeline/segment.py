@@ -177,18 +177,21 @@ def foreground(contrast: np.ndarray, *, high: float = 6.0, low: float = 3.0,
                min_area_frac: float = 2e-4) -> np.ndarray:
     """Hysteresis mask of |contrast| (both polarities), small specks removed."""
     smooth = cv2.GaussianBlur(contrast, (0, 0), 1.0)
-    # thresholds in units of the *smoothed* image's noise (≈ 0.3 of the raw noise
-    # for white noise, but measured: compression and optics correlate the noise)
+    # (no lower than white noise of the contrast's unit would give after this
+    # blur: a noise-free frame has none to measure)
+    mag = _in_noise_units(smooth, 0.3)
+    return _without_specks(apply_hysteresis_threshold(mag, low, high), min_area_frac)
+
+
+def _in_noise_units(smooth: np.ndarray, floor: float) -> np.ndarray:
+    """|``smooth``| (a smoothed contrast) in units of its own noise, at least ``floor``."""
+    # the *smoothed* image's noise (≈ 0.3 of the raw noise for white noise after
+    # a 1 px blur, but measured: compression and optics correlate the noise)
     hp = smooth - cv2.GaussianBlur(smooth, (0, 0), 4.0)
-    noise = robust_sd(hp, axis=None)
     # ... but no lower than what the background model leaves over the whole frame
     # (uneven illumination it did not follow), or that residue floods the mask
-    spread = robust_sd(smooth, axis=None)
-    # (and no lower than white noise of the contrast's unit would give after this
-    # blur: a noise-free frame has none to measure)
-    noise = max(noise, spread, 0.3)
-    mag = np.abs(smooth) / noise
-    return _without_specks(apply_hysteresis_threshold(mag, low, high), min_area_frac)
+    noise = max(robust_sd(hp, axis=None), robust_sd(smooth, axis=None), floor)
+    return np.abs(smooth) / noise
 
 
 #: The line filters of :func:`line_foreground`: Gaussian, this many working px
@@ -218,14 +221,11 @@ def line_foreground(contrast: np.ndarray, *, high: float = 6.0, low: float = 3.0
         kernel /= kernel.sum()
         smooth = cv2.filter2D(contrast, cv2.CV_32F, kernel.astype(np.float32),
                               borderType=cv2.BORDER_REFLECT)
-        # in units of this direction's own noise, as :func:`foreground` measures
-        # it; and no lower than white noise of half the contrast's unit would
-        # give (a frame's own noise is about 0.6 of it: :func:`contrast_image`),
-        # for a noise-free frame, which has none to measure
-        hp = smooth - cv2.GaussianBlur(smooth, (0, 0), 4.0)
-        noise = max(robust_sd(hp, axis=None), robust_sd(smooth, axis=None),
-                    0.5 * float(np.sqrt((kernel**2).sum())))
-        np.maximum(mag, np.abs(smooth) / noise, out=mag)
+        # in units of this direction's own noise; and no lower than white noise
+        # of half the contrast's unit would give (a frame's own noise is about
+        # 0.6 of it: :func:`contrast_image`), for a noise-free frame
+        np.maximum(mag, _in_noise_units(smooth, 0.5 * float(np.sqrt((kernel**2).sum()))),
+                   out=mag)
     return _without_specks(apply_hysteresis_threshold(mag, low, high), min_area_frac)
 
 
@@ -562,7 +562,8 @@ def detect(image: np.ndarray, *, base_hint=None, base_end=None) -> Detection | N
         None when no elongated structure stands out from the background.
     """
     f = working_scale(image.shape)
-    det = _detect_at(image, f, base_hint, base_end)
+    contrast = contrast_image(image, f)[0]
+    det = _detect_at(image, f, base_hint, base_end, contrast)
     # a noisy frame: the tube, or one of a hollow tube's rims, stands out of the
     # noise only once more of it is averaged; each coarser scale averages 4x the
     # pixels. Tried only while what is found is nothing or a line a few pixels
@@ -579,7 +580,7 @@ def detect(image: np.ndarray, *, base_hint=None, base_end=None) -> Detection | N
     if det is None:
         # nothing stands out at any scale: a faint tube's thin rims in noise may,
         # averaged along their own direction
-        det = _detect_in(line_foreground(contrast_image(image, f)[0]), f, base_hint, base_end)
+        det = _detect_in(line_foreground(contrast), f, base_hint, base_end)
     return det
 
 
@@ -606,9 +607,12 @@ def _rims_of(thin: Detection, wide: Detection) -> bool:
     return bool(np.mean(off <= RIM_REACH) >= RIM_INSIDE and np.median(off) >= RIM_OFF)
 
 
-def _detect_at(image: np.ndarray, f: int, base_hint, base_end) -> Detection | None:
-    """:func:`detect` at 1/``f`` resolution."""
-    contrast, _ = contrast_image(image, f)
+def _detect_at(image: np.ndarray, f: int, base_hint, base_end,
+               contrast: np.ndarray | None = None) -> Detection | None:
+    """:func:`detect` at 1/``f`` resolution (``contrast``: the frame's
+    :func:`contrast_image` there, if made already)."""
+    if contrast is None:
+        contrast, _ = contrast_image(image, f)
     # the tube by its own contrast, and by its outline: a transparent tube on a
     # mottled background, no darker than the darker patches, differs from them
     # mostly in its sharp edges
