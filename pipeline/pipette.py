@@ -50,16 +50,28 @@ MIN_TUBE_SHARE = 0.4
 #: first frame's (an inflated tube lengthens by a few %: 1.2 % at most over 232
 #: rendered scenes); else that frame found something else beyond the holder.
 LENGTH_OFF = 0.3
-#: The step in the profiles, at least: the mean squared difference of the two
-#: stretches' mean profiles over the profiles' scatter about those means (a
-#: tube's profiles along a stretch of one look: under 0.2; glass or a band to
-#: tube: 8-100 and more).
+#: The change in the profiles at the holder's end, at least: the mean squared
+#: difference of the holder's last two widths' mean profile from the tube's,
+#: over the tube's scatter about its own (see :func:`profile_change`; a tube's
+#: profiles along a stretch of one look: about 1; holders measured on two
+#: independent renderers' scenes, glass capillaries tapered or not, wide
+#: glass, blocks: 14-550).
 MIN_CHANGE = 7.0
-#: ... and the step must fit the profiles this much better (residual sum of
-#: squares) than a straight trend along the stretch does: a shading or a taper
-#: changes the profiles too, but steadily (a linear shading: 0.6; holders
-#: measured 1.3-7).
+#: ... and a straight trend along the holder with the tube's own profile past
+#: it must fit the profiles this much better (residual sum of squares) than
+#: one straight trend along the whole stretch: a shading changes the tube's
+#: profiles too, but steadily (a linear shading: 0.96; the same holders
+#: 1.3-22, tapered capillaries at the low end, 1.3-1.8).
 STEP_OVER_TREND = 1.2
+#: The tube's own profile is the median of this many widths past the stretch
+#: searched.
+REFERENCE_WIDTHS = 2.0
+#: The holder's profiles just before its end must differ from the tube's by at
+#: least this (mean squared difference, over the tube's scatter about its own).
+HOLDER_CHI2 = 4.0
+#: ... and the tube's past it, mostly (their median), from the far tube's by
+#: at most this (a drift along the tube, uneven light, stays within it: 1-6).
+TUBE_MATCH_CHI2 = 8.0
 #: Where the profiles do not step (a tapered glass changes them steadily; a
 #: holder of the tube's own look), the bent frames' sideways deviations from
 #: the first frame's line are fitted as ``c·max(0, s − s0)²`` (a clamped tube
@@ -80,6 +92,10 @@ MIN_HINGE_GAIN = 100.0
 #: over the video; holders 1-1.5 px).
 HINGE_SPREAD_PX = 2.0
 MIN_HINGE_FRAMES = 3
+#: The holder's end is looked for this many half-widths past the static
+#: stretch: a spline through holder and tube, whose curvature cannot step,
+#: leaves the holder's line before the holder ends.
+HOLDER_REACH_HW = 6.0
 #: Status of a frame whose centreline does not pass where the holder ends.
 OFF_HOLDER = "lost: the tube's start not found at the holder's end"
 #: ... and of one whose tube beyond it is far from the first frame's length.
@@ -195,8 +211,19 @@ def _sampled(curve: Curve, spacing_px: float = 1.0):
 
 def profile_change(image: np.ndarray, curve: Curve, half_width: float, upto: float
                    ) -> tuple[float, float]:
-    """Where along ``curve``'s first ``upto`` px the profiles across it change
-    most abruptly, and by how much.
+    """Where along ``curve``'s first ``upto`` px the holder ends and the tube's
+    own profile begins, and by how much the profiles change there.
+
+    The tube looks the same all along (across it, one profile); a holder need
+    not (a tapered glass widens steadily away from the tube). So the tube's
+    profile is taken from the :data:`REFERENCE_WIDTHS` widths past ``upto``
+    (tube, whatever the holder), each profile's mean squared difference from
+    it is measured in units of the tube's own scatter about it, and the
+    holder ends where that difference drops most sharply (by the ratio of its
+    means over a half-width either side), from at least :data:`HOLDER_CHI2`
+    before; placed, to a fraction of a pixel, where it has fallen half-way
+    (:func:`_half_way`). Past it, the profiles must mostly match the far
+    tube's (:data:`TUBE_MATCH_CHI2`).
 
     Parameters
     ----------
@@ -213,38 +240,81 @@ def profile_change(image: np.ndarray, curve: Curve, half_width: float, upto: flo
     Returns
     -------
     s : float
-        Arc length of the best single change (a piecewise-constant fit of the
-        profiles), px; 0 when the stretch is too short.
+        Arc length of the holder's end, px; 0 when the curve is too short
+        for the search and its reference.
     change : float
-        The mean squared difference of the two stretches' mean profiles over
-        the profiles' scatter about those means (per sample): near 0 where
-        nothing changes; 0 where a straight trend along the stretch fits the
-        profiles nearly as well (:data:`STEP_OVER_TREND`).
+        The mean squared difference between the holder's last
+        :data:`MIN_WIDTHS` widths' mean profile and the tube's, over the
+        tube's scatter (per sample). 0 where no profile differs from the
+        tube's by :data:`HOLDER_CHI2`; where those past the change do not
+        match the far tube's (:data:`TUBE_MATCH_CHI2`: a section of other
+        walls); and where a straight trend along the whole stretch fits the
+        profiles nearly as well as a trend along the holder with the tube's
+        one profile past it (:data:`STEP_OVER_TREND`: a shading).
     """
     s, z, _, normal = _sampled(curve)
+    width_px = 2 * half_width
+    k_min = int(np.ceil(MIN_WIDTHS * width_px))
     n = min(int(np.floor(upto)) + 1, s.size)
-    k_min = int(np.ceil(MIN_WIDTHS * 2 * half_width))
-    if n - k_min < 3:
+    n_ref = min(int(np.ceil(REFERENCE_WIDTHS * width_px)), s.size - n)
+    if n - k_min < 3 or n_ref < max(8, 0.5 * REFERENCE_WIDTHS * width_px):
         return 0.0, 0.0
     off = np.arange(-3.0 * half_width, 3.0 * half_width + 0.25, 0.5)
-    pts = z[:n, None] + normal[:n, None] * off[None, :]
+    pts = z[:n + n_ref, None] + normal[:n + n_ref, None] * off[None, :]
     prof = map_coordinates(image, [-pts.imag, pts.real], order=1, mode="nearest")
-    c1 = np.cumsum(prof, axis=0)
-    c2 = np.cumsum(prof**2, axis=0)
-    k = np.arange(k_min, n - 2)
-    left = (c2[k - 1] - c1[k - 1] ** 2 / k[:, None]).sum(axis=1)
-    right = ((c2[-1] - c2[k - 1]) - (c1[-1] - c1[k - 1]) ** 2 / (n - k)[:, None]).sum(axis=1)
-    at = int(k[np.argmin(left + right)])
-    sse = float(np.min(left + right))
-    # a straight trend along the stretch, per sample across it
+    ref = prof[n:]
+    tube = np.median(ref, axis=0)
+    # (medians: dust or a bubble on a few of the reference's profiles)
+    scatter = max(float(np.median(np.mean((ref - tube) ** 2, axis=1))), 1e-12)
+    dev = np.mean((prof[:n] - tube) ** 2, axis=1) / scatter
+    # the holder ends where the profiles' difference from the tube's drops most
+    # sharply, as a ratio of its means over a half-width either side: a slow
+    # drift along the tube (uneven light, a taper) changes it by little over
+    # that reach, the holder's end by 10-40 times
+    w = max(int(round(half_width)), 3)
+    c = np.r_[0.0, np.cumsum(dev)]
+    k = np.arange(max(k_min, w), n - w + 1)
+    if not k.size:
+        return 0.0, 0.0
+    before = (c[k] - c[k - w]) / w
+    after = (c[k + w] - c[k]) / w
+    ratio = np.where(before >= HOLDER_CHI2, before / np.maximum(after, 1e-12), 0.0)
+    at = int(k[np.argmax(ratio)])
+    if ratio.max() <= 0.0:
+        return float(s[at]), 0.0    # nothing there differs from the tube
+    if np.median(dev[at:]) > TUBE_MATCH_CHI2:
+        # past it the profiles are not the far tube's: a section whose walls
+        # differ (a stiff first section that stood still), not a holder's end
+        return float(s[at]), 0.0
+    # a shading along the tube changes its profiles steadily too: a straight
+    # trend along the whole stretch then fits as well as one along the holder
+    # with the tube's own profile past it
     design = np.c_[np.ones(n), s[:n]]
-    trend, *_ = np.linalg.lstsq(design, prof, rcond=None)
-    sse_trend = float(((prof - design @ trend) ** 2).sum())
+    trend, *_ = np.linalg.lstsq(design, prof[:n], rcond=None)
+    sse_trend = float(((prof[:n] - design @ trend) ** 2).sum())
+    held, *_ = np.linalg.lstsq(design[:at], prof[:at], rcond=None)
+    sse = float(((prof[:at] - design[:at] @ held) ** 2).sum()
+                + ((prof[at:n] - prof[at:n].mean(axis=0)) ** 2).sum())
     if sse_trend < STEP_OVER_TREND * sse:
         return float(s[at]), 0.0
-    diff = prof[:at].mean(axis=0) - prof[at:n].mean(axis=0)
-    scatter = sse / max(prof.size - 2 * prof.shape[1], 1)
-    return float(s[at]), float(np.mean(diff**2) / max(scatter, 1e-12))
+    last = prof[max(at - k_min, 0):at].mean(axis=0)
+    return _half_way(s, dev, at, half_width), float(np.mean((last - tube) ** 2) / scatter)
+
+
+def _half_way(s: np.ndarray, dev: np.ndarray, at: int, half_width: float) -> float:
+    """Where, just before profile ``at``, the profiles' difference from the
+    tube's falls to half the holder's there (in amplitude: ``dev`` is squared):
+    the blurred edge of the holder's end. The first profile that matches the
+    tube's lies out in that edge's tail, 1-2 px past it."""
+    amp = np.sqrt(np.maximum(dev, 0.0))
+    lo = max(at - max(int(round(half_width)), 3), 0)
+    half = 0.5 * float(np.median(amp[lo:at])) if at > lo else 0.0
+    above = np.flatnonzero(amp[lo:at] >= half) + lo
+    if half <= 0.0 or not above.size:
+        return float(s[at])
+    j = int(above[-1])
+    a0, a1 = amp[j], amp[j + 1]
+    return float(s[j] + (s[j + 1] - s[j]) * min((a0 - half) / max(a0 - a1, 1e-12), 1.0))
 
 
 def cut_base(curve: Curve, s: float, base_angle: float | None = None) -> Curve:
@@ -309,7 +379,8 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
     first = results[0].curve
     if still < least:
         return results, None
-    s, change = profile_change(first_frame(), first, half_width, still + 2 * half_width)
+    s, change = profile_change(first_frame(), first, half_width,
+                               still + HOLDER_REACH_HW * half_width)
     told = (f"its profile stepped there by {change:.0f}x its scatter" if change >= MIN_CHANGE
             else None)
     if told is None:
@@ -328,9 +399,10 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
         if not r.ok:
             out.append(r)
             continue
-        # each frame cut where its own centreline passes the holder's end
+        # each frame cut where its own centreline passes the holder's end (near
+        # its start: a tube curled past a turn may pass it again further on)
         arc, z, _, _ = _sampled(r.curve, 0.25)
-        k = int(np.argmin(np.abs(z - end)))
+        k = int(np.argmin(np.where(arc <= s + least, np.abs(z - end), np.inf)))
         at = float(arc[k])
         missed = (OFF_HOLDER if abs(z[k] - end) > tol
                   else OFF_LENGTH if abs((r.curve.length - at) / tube - 1) > LENGTH_OFF

@@ -529,10 +529,19 @@ def _found_past(hidden, image, hide, base_hint):
 
 def _without_holder(frames, results, det, base_hint, px):
     """:func:`pipeline.pipette.drop_holder`, where the base is not given (a
-    narrower pipette's width step may be a step along the holder itself)."""
-    if det is None or base_hint is not None:
+    narrower pipette's width step may be a step along the holder itself).
+
+    Also where the first frame's detection was set aside (the base end chosen
+    by motion: a tapered capillary whose wide end the detector did not take
+    for the tube leaves the tube's end unseen), with the half-width the
+    tracker learnt where it started."""
+    if base_hint is not None:
         return results, None
-    return drop_holder(results, lambda: as_float(frames.first), det.half_width, px)
+    widths = [r.half_width_px for r in results if np.isfinite(r.half_width_px)]
+    if det is None and not widths:
+        return results, None
+    half_width = det.half_width if det is not None else float(np.median(widths))
+    return drop_holder(results, lambda: as_float(frames.first), half_width, px)
 
 
 def _static_end(reader, det):

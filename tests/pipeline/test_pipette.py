@@ -19,11 +19,13 @@ TURN = -3.5
 
 
 def _video(tmp_path, holder: float | None, n: int = 8, base=BASE, turn=TURN, hw=HW,
-           holder_look: float = 0.5):
+           holder_look: float = 0.5, capillary: tuple | None = None):
     """A dark tube bending clockwise from straight to 200 deg, held (``holder``:
     that many of its half-widths wide, ``holder_look`` times as dark, running to
-    the border) or starting at the border itself; frames as PNGs, and the true
-    bends (deg)."""
+    the border) or starting at the border itself, or held by a tapered glass
+    capillary (``capillary``: its radius at the tube and far from it, and the
+    taper's length, in half-widths, and its walls' depth; see
+    :func:`_capillary`); frames as PNGs, and the true bends (deg)."""
     folder = tmp_path / "frames"
     folder.mkdir()
     bends = []
@@ -32,6 +34,9 @@ def _video(tmp_path, holder: float | None, n: int = 8, base=BASE, turn=TURN, hw=
         img = tube_image((480, 640), base, ANGLE, LENGTH, kappa + 1e-12, hw, noise=0.01,
                          seed=k, pipette_half_width=None if holder is None else holder * hw,
                          pipette_contrast=holder_look)
+        if capillary is not None:
+            r_tip, r_far, taper, line = capillary
+            img = _capillary(img, r_tip * hw, r_far * hw, taper * hw, base=base, line=line)
         cv2.imwrite(str(folder / f"f{k:02d}.png"), (img * 255).round().astype(np.uint8))
         bends.append(np.degrees(kappa * LENGTH))
     return folder, np.array(bends)
@@ -221,6 +226,63 @@ def test_the_profiles_change_where_the_holder_ends(holder, changes):
     assert (change >= pipette.MIN_CHANGE) == changes
     if changes:
         assert s == pytest.approx(abs(start - BASE), abs=2.0)
+
+
+def _capillary(img, r_tip, r_far, taper, *, base=BASE, angle=ANGLE, line=0.45):
+    """``img`` with a tapered glass capillary behind the tube's base: two dark
+    wall lines ``r_tip`` px off its axis at the base, widening to ``r_far``
+    over ``taper`` px, and on to the border."""
+    from scipy.special import erf
+
+    rows, cols = img.shape
+    rr, cc = np.mgrid[0:rows, 0:cols]
+    rel = ((cc - 1j * rr) - base) * np.exp(-1j * angle)
+    back = np.clip(-rel.real, 0.0, None)
+    radius = r_tip + (r_far - r_tip) * np.minimum(back / taper, 1.0)
+    behind = 0.5 * (1 + erf(-rel.real / 0.7))
+    wall = np.exp(-0.5 * ((np.abs(rel.imag) - radius) / 0.8) ** 2)
+    return (img * (1 - line * wall * behind)).astype(np.float32)
+
+
+@pytest.mark.parametrize("r_tip", [0.5, 1.0])
+def test_a_tapered_capillary_ends_where_the_tube_begins(r_tip):
+    # a glass capillary half as wide as the tube (or as wide) where the tube
+    # leaves it, widening to twice the tube's width over four widths: its
+    # profiles change steadily along the taper (a single step fitted to the
+    # stretch split it mid-taper, 54 px short), and step where it ends
+    img = tube_image((480, 640), BASE, ANGLE, LENGTH, 1e-12, HW, noise=0.01)
+    img = _capillary(img, r_tip * HW, 2.2 * HW, 8 * HW)
+    start = 639 - 240j
+    structure = Curve(start, ANGLE, LENGTH + abs(start - BASE), np.zeros(8))
+    s, change = pipette.profile_change(img, structure, HW, abs(start - BASE) + 2 * HW)
+    assert change >= pipette.MIN_CHANGE
+    assert s == pytest.approx(abs(start - BASE), abs=1.0)
+
+
+@pytest.mark.parametrize("capillary", [(0.7, 1.5, 6.0, 0.6), (0.6, 2.0, 20.0, 0.6)])
+def test_a_tapered_capillary_is_cut_off_every_frame(tmp_path, capillary):
+    # tracked from the border through the capillary (the first), or from
+    # within its taper, the base end told by motion (the second, whose wide end
+    # the detector does not take for a tube): the holder's end was put 25 and
+    # 132 px off before
+    folder, bends = _video(tmp_path, holder=None, base=BASE, capillary=capillary)
+    run = _cut_and_measured(folder, tmp_path / "out", bends)
+    assert any("holder (pipette) taken for the tube" in n for n in run["left_out_and_why"])
+
+
+def test_a_holder_s_end_is_found_past_a_drift_along_the_tube():
+    # a holder as wide as the tube, and the light fading along the tube past
+    # it (the tube's profiles differ from the far tube's by several times their
+    # scatter near the holder): the holder ends where the profiles change
+    # sharply, not where the drift has faded
+    img = tube_image((480, 640), BASE, ANGLE, LENGTH, 1e-12, HW, noise=0.005,
+                     pipette_half_width=HW)
+    img *= np.linspace(0.9, 1.0, 640)[None, :].astype(np.float32)
+    start = 639 - 240j
+    structure = Curve(start, ANGLE, LENGTH + abs(start - BASE), np.zeros(8))
+    s, change = pipette.profile_change(img, structure, HW, abs(start - BASE) + 6 * HW)
+    assert change >= pipette.MIN_CHANGE
+    assert s == pytest.approx(abs(start - BASE), abs=1.0)
 
 
 def test_a_frame_far_from_the_first_frame_s_length_beyond_the_holder_is_lost():
