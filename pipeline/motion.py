@@ -39,6 +39,11 @@ from .frames import to_float
 
 #: Frames read at most by the motion pass (the bend is under way by then).
 MAX_FRAMES = 300
+#: The ends are compared on the first frame from which one has clearly moved
+#: more than the other on this many frames running (or to the last frame):
+#: a noise spike at one end, which the largest change holds on to, is matched
+#: at the other within a few frames.
+HELD_FRAMES = 5
 
 
 @dataclass(frozen=True)
@@ -69,6 +74,38 @@ class EndMotion:
         return self.last < self.first
 
 
+def _changes(frames: Iterable[np.ndarray], smooth_px: float, target: int, max_frames: int):
+    """Each frame's change from the first, as :func:`change_map` measures it
+    (before the maximum over frames): yields ``(change, factor)``, the first
+    frame's change zero."""
+    first = None
+    for frame in islice(frames, max_frames):
+        img = to_float(frame)
+        if first is None:
+            factor = max(1, int(np.ceil(max(img.shape) / target)))
+            size = (max(img.shape[1] // factor, 1), max(img.shape[0] // factor, 1))
+            sigma = max(smooth_px / factor, 1.0)
+        small = (cv2.resize(img, size, interpolation=cv2.INTER_AREA) if factor > 1
+                 else img).astype(np.float64)
+        if first is None:
+            first = small
+            yield np.zeros_like(small), factor
+            continue
+        # a flickering lamp scales the whole frame: as the (static) median does
+        gain = float(np.median(small)) / max(float(np.median(first)), 1e-9)
+        raw = small - gain * first
+        # smoothed as it is (noise averages out), and smoothed in magnitude: in
+        # a relief the tube's lit and shaded flanks change with opposite signs
+        # and cancel under the blur, on its centreline most of all
+        out = np.zeros_like(small)
+        for diff in (cv2.GaussianBlur(raw, (0, 0), sigma),
+                     cv2.GaussianBlur(np.abs(raw), (0, 0), sigma)):
+            dev = np.abs(diff - np.median(diff))
+            spread = 1.4826 * float(np.median(dev))
+            np.maximum(out, dev / max(spread, 1e-9), out=out)
+        yield out, factor
+
+
 def change_map(frames: Iterable[np.ndarray], smooth_px: float, *, target: int = 256,
                max_frames: int = MAX_FRAMES) -> tuple[np.ndarray, int, int]:
     """Largest change of each place from the first frame, downsampled.
@@ -95,35 +132,10 @@ def change_map(frames: Iterable[np.ndarray], smooth_px: float, *, target: int = 
     n : int
         Frames used.
     """
-    first = out = None
-    factor = 1
-    n = 0
-    for frame in islice(frames, max_frames):
-        img = to_float(frame)
-        if first is None:
-            factor = max(1, int(np.ceil(max(img.shape) / target)))
-            size = (max(img.shape[1] // factor, 1), max(img.shape[0] // factor, 1))
-            sigma = max(smooth_px / factor, 1.0)
-        small = (cv2.resize(img, size, interpolation=cv2.INTER_AREA) if factor > 1
-                 else img).astype(np.float64)
+    out, factor, n = np.zeros((1, 1)), 1, 0
+    for change, factor in _changes(frames, smooth_px, target, max_frames):  # noqa: B007 (returned)
+        out = change if n == 0 else np.maximum(out, change, out=out)
         n += 1
-        if first is None:
-            first = small
-            out = np.zeros_like(small)
-            continue
-        # a flickering lamp scales the whole frame: as the (static) median does
-        gain = float(np.median(small)) / max(float(np.median(first)), 1e-9)
-        raw = small - gain * first
-        # smoothed as it is (noise averages out), and smoothed in magnitude: in
-        # a relief the tube's lit and shaded flanks change with opposite signs
-        # and cancel under the blur, on its centreline most of all
-        for diff in (cv2.GaussianBlur(raw, (0, 0), sigma),
-                     cv2.GaussianBlur(np.abs(raw), (0, 0), sigma)):
-            dev = np.abs(diff - np.median(diff))
-            spread = 1.4826 * float(np.median(dev))
-            np.maximum(out, dev / max(spread, 1e-9), out=out)
-    if n == 0:
-        return np.zeros((1, 1)), 1, 0
     return out, factor, n
 
 
@@ -134,9 +146,17 @@ def _to_working(points_rc: np.ndarray, factor: int, shape) -> np.ndarray:
     return np.clip(rc, 0, np.array(shape) - 1)
 
 
-def end_motion(frames: Iterable[np.ndarray], path_rc, radius_px: float,
-               **kwargs) -> EndMotion:
+def end_motion(frames: Iterable[np.ndarray], path_rc, radius_px: float, *,
+               target: int = 256, max_frames: int = MAX_FRAMES) -> EndMotion:
     """Compare how much the scene changes at the two ends of a tube.
+
+    The change near each end (its largest so far) is followed frame by frame,
+    and the comparison made on the first frame from which one end has clearly
+    moved more than the other (:attr:`EndMotion.decided`) on
+    :data:`HELD_FRAMES` frames running, or on to the last frame read; else on
+    the last frame. The tip sweeps away first; a tube that curls past a turn
+    later passes over its own base, and the largest change over the whole
+    video then saw both ends move alike (a 380 deg curl: 11 against 8.5).
 
     Parameters
     ----------
@@ -151,23 +171,33 @@ def end_motion(frames: Iterable[np.ndarray], path_rc, radius_px: float,
         tube's half-width: further takes in the base section's own bending,
         which moved a 6 px tube's path 10 px from its base as much as its tip.
     """
-    change, factor, n = change_map(frames, 0.5 * radius_px, **kwargs)
     path = np.asarray(path_rc, dtype=float)
     arc = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(path, axis=0).T))])
-    # evenly along the path, a working pixel apart: a skeleton's path has its
-    # ends carried on by a straight step, and a median over the one or two
-    # points within reach of an end judged it by a single place (a base end
-    # seen as moving as much as the tip: 114 against 186, from one point a
-    # step past the base)
-    even = np.linspace(0.0, arc[-1], max(2, int(np.ceil(arc[-1] / factor)) + 1))
-    path = np.c_[np.interp(even, arc, path[:, 0]), np.interp(even, arc, path[:, 1])]
-    arc = even
-
-    def near_end(points, dist):
-        rc = _to_working(points[dist <= radius_px], factor, change.shape)
-        return float(np.median(change[rc[:, 0], rc[:, 1]]))
-
-    return EndMotion(near_end(path, arc), near_end(path, arc[-1] - arc), n)
+    first = last = 0.0
+    n = 0
+    told = None
+    for change, factor in _changes(frames, 0.5 * radius_px, target, max_frames):
+        if n == 0:
+            # evenly along the path, a working pixel apart: a skeleton's path has
+            # its ends carried on by a straight step, and a median over the one or
+            # two points within reach of an end judged it by a single place (a
+            # base end seen as moving as much as the tip: 114 against 186, from
+            # one point a step past the base)
+            even = np.linspace(0.0, arc[-1], max(2, int(np.ceil(arc[-1] / factor)) + 1))
+            pts = np.c_[np.interp(even, arc, path[:, 0]), np.interp(even, arc, path[:, 1])]
+            near = [tuple(_to_working(pts[d <= radius_px], factor, change.shape).T)
+                    for d in (even, arc[-1] - even)]
+        n += 1
+        first = max(first, float(np.median(change[near[0]])))
+        last = max(last, float(np.median(change[near[1]])))
+        now = EndMotion(first, last, n)
+        if not now.decided:
+            told = None
+        elif told is None or now.base_is_last != told.base_is_last:
+            told = now
+        if told is not None and n - told.frames >= HELD_FRAMES:
+            return told
+    return told if told is not None else EndMotion(first, last, n)
 
 
 #: A place moved when its change (see :func:`change_map`) is at least this.
