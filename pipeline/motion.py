@@ -11,16 +11,18 @@ The measure is the change from the first frame (smoothed by a quarter of the
 tube's width, in units of that smoothed change's own spread over the image;
 or its magnitude smoothed likewise, where that stands out more: in a relief
 the tube's lit and shaded flanks change with opposite signs and cancel),
-at its largest over the frames, along the tube's path within a half-width of
-each end. Not the temporal standard deviation: the tip leaves its first
+at its largest over the frames so far, along the tube's path within a
+half-width of each end; the ends are compared on the first frame from which
+one has clearly moved more (a tube curling past a turn later comes back over
+its base). Not the temporal standard deviation: the tip leaves its first
 place for good (a step, whose deviation is small when it goes early), and on
 a bright fluorescent tube the shot noise alone makes the held end "vary"
 more than the dark background the tip leaves (a 6 px tube: 3.8 against 2.1,
 the wrong end).
 
 The test needs one cheap pass over (at most) the first few hundred frames at
-a working resolution of ≤ 256 px, and is run only when the first frame leaves
-the base end ambiguous.
+a working resolution of ≤ 256 px, stopped once the ends are told apart, and
+is run only when the first frame leaves the base end ambiguous.
 
 The same change tells a tube from a static structure taken for it
 (:func:`moved_elsewhere`): run only when the tracked tube stood still.

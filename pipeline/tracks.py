@@ -566,7 +566,7 @@ def _static_end(reader, det):
     return (end.real, -end.imag), (
         f"base end chosen by motion: no pipette or border seen, and the other end moved "
         f"{max(motion.first, motion.last) / max(min(motion.first, motion.last), 1.0):.0f}x "
-        f"more over {motion.frames} frames"), None
+        f"more over the first {motion.frames} frames"), None
 
 
 def _notes(results, stages, base_given: bool, rate) -> list[str]:
