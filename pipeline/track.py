@@ -196,6 +196,16 @@ RESIDUAL_JUMP_FRAMES = 4
 #: 0.8-1.4 deg (with RUN_ON_ROUNDS); 136 scenes of the repo's renderer: one moved
 #: by > 0.02 deg (v29, 0.88 -> 1.00 deg, failing before and after).
 WIDTH_GUESSES = (1.4, 1.0, 0.6, 0.36)
+#: A pair of edges of the other polarity around the one found, at these
+#: multiples of its width, is the tube (:func:`_enclosing`) where it is at
+#: least ENCLOSING_MIN_RATIO times as wide, found on ENCLOSING_VALID of as many
+#: profiles and its edges ENCLOSING_STRENGTH as strong.
+ENCLOSING_SCALES = (1.8, 2.3, 2.9)
+ENCLOSING_MIN_RATIO = 1.5
+ENCLOSING_VALID = 0.8
+ENCLOSING_STRENGTH = 0.5
+#: ... and standing this many times above the edge filter's noise.
+ENCLOSING_NOISE = 3.0
 #: How many times the first fit is carried on past its end while the tube's
 #: edges run on to it (:func:`_run_on`): each time by half its length. Once was
 #: not enough for a mask that stopped at a third of the tube (a faint middle
@@ -452,6 +462,37 @@ def _learn_widths(refined: Refined, n_bins: int, fallback: float) -> np.ndarray:
     return np.interp(centres, centres[good], out[good])
 
 
+def _enclosing(image, curve, r, polarity, hw, tol):
+    """The edge pair ``r`` found, or a wider pair of the other polarity around
+    it whose edges are about as strong: a transparent tube in transmitted
+    light shows a bright lumen between its dark walls, and the detector may
+    take the lumen for the tube (a 16 px tube found 7 px wide). A phase
+    halo around a dark tube is a band of the other polarity too, but it
+    fades outwards: its outer edges are weak."""
+    inner = float(np.nanmedian(r.width[r.valid]))
+    best = None
+    for scale in ENCLOSING_SCALES:
+        look = TubeLook(-polarity, np.full(9, 0.5 * inner * scale), 0.0)
+        c = refine(image, curve, look, window=0.6 * hw, iterations=3, width_tol=0.3,
+                   fit_length=False, tol_px=tol, tip_stiffness=0.0)
+        if not c.valid.any():
+            continue
+        wide = float(np.nanmedian(c.width[c.valid]))
+        if (wide >= ENCLOSING_MIN_RATIO * inner
+                and c.valid_fraction >= ENCLOSING_VALID * r.valid_fraction
+                and c.strength >= ENCLOSING_STRENGTH * r.strength
+                and (best is None or c.valid_fraction * c.strength
+                     > best.valid_fraction * best.strength)):
+            best = c
+    if best is None:
+        return r, polarity
+    # (in heavy noise any pair is found, as strong as the noise: a faint phase
+    # tube's halo, 0.9x the edge filter's noise, was taken for the tube)
+    if best.strength < ENCLOSING_NOISE * gradient_noise(image, look.smooth_px):
+        return r, polarity
+    return best, -polarity
+
+
 def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=None,
                settings: TrackSettings | None = None,
                joints: tuple[float, ...] | None = None):
@@ -517,6 +558,8 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
         best = max(cands, key=lambda c: c[0] * (np.nanmedian(c[2].width)
                                                 if c[2].valid.any() else 0.0))
     _, polarity, r = best
+    if polarity != 0 and r.valid.any():
+        r, polarity = _enclosing(image, curve, r, polarity, hw, tol)
     if r.valid_fraction < 0.3:
         return None
     # (the end's sideways step, if any, is told by the frames: see _EndStepVotes)

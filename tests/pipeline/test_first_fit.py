@@ -341,3 +341,46 @@ def test_the_background_surface_follows_the_illumination_not_the_tube():
     tube = np.where(np.abs(y - 0.3 * x) < 0.06, -0.3, 0.0)
     surface = segment._smooth_surface(light + tube)
     assert np.abs(surface - light).max() < 2e-3
+
+
+def _bright_lumen(lumen_gain, seed=0, halo=False):
+    """A transparent tube in transmitted light, 16 px wide: dark walls around
+    a lumen ``lumen_gain`` times as bright as the background, sealed 15 px
+    short of the tip; or (``halo``) a dark tube in a bright halo that fades
+    outwards, as phase contrast shows it."""
+    from tests.pipeline.synthetic import _signed_position
+
+    rr, cc = np.mgrid[0:360, 0:480]
+    s, d = _signed_position(cc - 1j * rr, 60 - 200j, 0.1, 360.0, 1 / 500)
+    along = (s >= 0) & (s <= 360.0)
+    img = np.full((360, 480), 0.6)
+    if halo:
+        # a dark tube 16 px wide, its halo 12 px wide and fading outwards
+        out = np.clip((np.abs(d) - 8.0) / 12.0, 0.0, 1.0)
+        img = np.where(along & (np.abs(d) > 8.0), 0.6 + 0.25 * (1 - out), img)
+        img[along & (np.abs(d) <= 8.0)] = 0.35
+    else:
+        img[along & (np.abs(d) <= 8.0)] = 0.35
+        img[(s >= 0) & (s <= 345.0) & (np.abs(d - 1.0) <= 3.5)] = 0.6 * lumen_gain
+    img = cv2.GaussianBlur(img, (0, 0), 0.8)
+    img += np.random.default_rng(seed).normal(0, 0.01, img.shape)
+    return np.clip(img, 0, 1).astype(np.float32)
+
+
+@pytest.mark.parametrize("gain", [1.1, 1.3])
+def test_a_bright_lumen_is_not_taken_for_the_tube(gain):
+    # the lumen, brighter than the background between the dark walls, stands
+    # out as a bright tube 7 px wide and 15 px short; the dark walls around it
+    # are the tube (found 3.5 px half-wide, 344 px long before)
+    r, look, _ = track.initialise(_bright_lumen(gain))
+    assert look.polarity == -1
+    assert look.mean_half_width == pytest.approx(8.0, abs=0.5)
+    assert r.curve.length == pytest.approx(360.0, abs=2.0)
+
+
+def test_a_phase_halo_is_not_taken_for_the_tube():
+    # a bright band around a dark tube too, but fading outwards: its outer
+    # edges are weak, and the dark tube stays the tube
+    r, look, _ = track.initialise(_bright_lumen(1.0, halo=True))
+    assert look.polarity == -1
+    assert look.mean_half_width == pytest.approx(8.0, abs=0.5)
