@@ -468,7 +468,13 @@ def _enclosing(image, curve, r, polarity, hw, tol):
     light shows a bright lumen between its dark walls, and the detector may
     take the lumen for the tube (a 16 px tube found 7 px wide). A phase
     halo around a dark tube is a band of the other polarity too, but it
-    fades outwards: its outer edges are weak."""
+    fades outwards: its outer edges are weak.
+
+    ``r`` is the first fit of ``curve`` with ``polarity`` (±1), ``hw`` the
+    detection's half-width (px) and ``tol`` the fits' tolerance (px). Returns
+    ``(fit, polarity)``: ``r`` and ``polarity``, or the wider pair's fit and
+    the other polarity. (The noise is the first fits' edge filter's, at the
+    look's default smoothing.)"""
     inner = float(np.nanmedian(r.width[r.valid]))
     best = None
     for scale in ENCLOSING_SCALES:
@@ -488,7 +494,7 @@ def _enclosing(image, curve, r, polarity, hw, tol):
         return r, polarity
     # (in heavy noise any pair is found, as strong as the noise: a faint phase
     # tube's halo, 0.9x the edge filter's noise, was taken for the tube)
-    if best.strength < ENCLOSING_NOISE * gradient_noise(image, look.smooth_px):
+    if best.strength < ENCLOSING_NOISE * gradient_noise(image, TubeLook.smooth_px):
         return r, polarity
     return best, -polarity
 
