@@ -423,8 +423,8 @@ def _stood_still(frames, results, det):
               if r.ok else r for r in results]
     # its width as the tracker learnt it where it started on it (the first
     # frame's detection may have been the tube itself)
-    widths = [r.half_width_px for r in results if np.isfinite(r.half_width_px)]
-    half_width = float(np.median(widths)) if widths else det.half_width
+    learnt = _learnt_half_width(results)
+    half_width = learnt if learnt is not None else det.half_width
     return marked, (f"the structure tracked stood still over the video, while {share:.1f}x "
                     "its area moved elsewhere (another structure bent there: the tube?): "
                     "its frames are not measured"), (ok[0].tracked, half_width)
@@ -537,11 +537,17 @@ def _without_holder(frames, results, det, base_hint, px):
     tracker learnt where it started."""
     if base_hint is not None:
         return results, None
-    widths = [r.half_width_px for r in results if np.isfinite(r.half_width_px)]
-    if det is None and not widths:
+    half_width = det.half_width if det is not None else _learnt_half_width(results)
+    if half_width is None:
         return results, None
-    half_width = det.half_width if det is not None else float(np.median(widths))
     return drop_holder(results, lambda: as_float(frames.first), half_width, px)
+
+
+def _learnt_half_width(results) -> float | None:
+    """The median half-width the tracker learnt where it started (px), over
+    ``results``; None if it never started."""
+    widths = [r.half_width_px for r in results if np.isfinite(r.half_width_px)]
+    return float(np.median(widths)) if widths else None
 
 
 def _static_end(reader, det):
