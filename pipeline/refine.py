@@ -394,6 +394,13 @@ class Refined:
         (see :attr:`TubeLook.end_in_question`) or no valid profile is that near.
     in_view : (n,) bool ndarray, optional
         Profiles whose whole search range lies within the image.
+    last_move_px : float
+        How far the last round moved the centreline (its largest step), px:
+        a fit whose rounds ran out while it still moved has not settled.
+    length_held : bool
+        The length was not fitted but held at the tube's own from other frames
+        (the caller's say: :func:`refine` with ``fit_length=False`` leaves it
+        False); such a fit counts as having its end.
     end_steps : (Z, 3) ndarray, optional
         For each stretch of :data:`END_STEP_ZONES_HW` half-widths at the end:
         the same mean offset there (NaN where no valid profile is that near),
@@ -418,6 +425,8 @@ class Refined:
     end_offset: float = float("nan")
     end_steps: np.ndarray | None = None
     in_view: np.ndarray | None = None
+    last_move_px: float = 0.0
+    length_held: bool = False
 
     @property
     def valid_fraction(self) -> float:
@@ -595,6 +604,7 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
     last_section = None
     var = np.inf
     it = 0
+    move = 0.0
     for it in range(1, iterations + 1):  # noqa: B007 (it is reported)
         smp = evaluate(curve, basis)
         normals = smp.normal[idx]
@@ -765,7 +775,8 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
     in_view = ((at.real >= reach) & (at.real <= image.shape[1] - 1 - reach)
                & (-at.imag >= reach) & (-at.imag <= image.shape[0] - 1 - reach))
     return Refined(curve, u, width, edges.valid, rms, tip_found, it, strength, ~dropped, mids,
-                   tip_correction, noise, last_section, end_offset, end_steps, in_view=in_view)
+                   tip_correction, noise, last_section, end_offset, end_steps, in_view=in_view,
+                   last_move_px=float(move))
 
 
 def end_step_left_out(curve: Curve, step_px: float, offset_px: float) -> bool:

@@ -187,6 +187,13 @@ JOINT_CHECK_GROWTH = 1.25
 RESIDUAL_JUMP = 4.0
 RESIDUAL_JUMP_MIN_PX = 0.3
 RESIDUAL_JUMP_FRAMES = 4
+#: A fast fit at a crossing whose last round still moved the centreline by
+#: more than this, px, has not settled (its few rounds ran out on a prediction
+#: far from the tube: a curl that stopped or turned back, which the
+#: constant-velocity prediction carries on); it is redone as the wide search.
+#: (Settled fast fits move under 0.4 px in their last round; at a reversal
+#: 8-17 px.)
+UNSETTLED_MOVE_PX = 0.5
 #: Fractions of the detection mask's width tried as the tube's width on the
 #: first fit (the strongest edge pairs win): the mask of a strong, thin band
 #: spreads over its blurred skirts, to twice the width of a 6 px opaque tube;
@@ -792,7 +799,8 @@ def _crop_box(curve: Curve, margin: float, shape):
 def _good(r: Refined, look: TubeLook) -> bool:
     # at a crossing the spline bridges the dropped profiles from both sides, as
     # long as most of the tube is still seen
-    return (r.valid_fraction >= MIN_VALID and r.coverage >= MIN_COVERAGE and r.tip_found
+    return (r.valid_fraction >= MIN_VALID and r.coverage >= MIN_COVERAGE
+            and (r.tip_found or r.length_held)
             and r.end_gap_px <= END_GAP_HW * look.mean_half_width
             and r.residual_px <= max(0.5, 0.08 * look.mean_half_width,
                                      min(NOISE_RESIDUAL_RATIO * r.noise_px,
@@ -820,7 +828,8 @@ def _ran_on(r: Refined, length: float) -> str:
 
 
 def _score(r: Refined) -> float:
-    return r.valid_fraction * (1.0 if r.tip_found else 0.5) / (1.0 + r.residual_px)
+    return (r.valid_fraction * (1.0 if r.tip_found or r.length_held else 0.5)
+            / (1.0 + r.residual_px))
 
 
 def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
@@ -884,6 +893,8 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
     end_step_votes = _EndStepVotes()
     # the edges' residual on the last frames measured (not at crossings)
     residuals: list[float] = []
+    # the tube's length on the last frames measured where it does not cross itself
+    lengths: list[float] = []
     # (each with its frame as float32)
     pending: list[tuple[FrameTrack, np.ndarray]] | None = [] if base_hint is None else None
     for index, frame in enumerate(frames):
@@ -895,10 +906,11 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
         # held before (so that the ends cannot swap); only --base fixes it
         restart_end = held_base if base_hint is None and held_base is not None else base_end
         result = _track_one(index, frame, look, history, base_hint, restart_end, det, settings,
-                            known, search, tip_ratio, widths, typical)
+                            known, search, tip_ratio, widths, typical,
+                            float(np.median(lengths)) if history and lengths else None)
         if isinstance(result, tuple):  # (re)initialised: a new look, a new history
             old_look, (result, look) = look, result
-            history, residuals = [], []
+            history, residuals, lengths = [], [], []
             if pending is not None:
                 # the base is voted on by this start's frames: an earlier start,
                 # lost since, may have been on something else (a curl's first
@@ -936,6 +948,7 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
             history = (history + [result.tracked])[-2:]
             if not result.crossing:
                 residuals = (residuals + [result.residual_px])[-RESIDUAL_JUMP_FRAMES:]
+                lengths = (lengths + [result.curve.length])[-RESIDUAL_JUMP_FRAMES:]
             lost_run = 0
             result = replace(result, end_clear=look.clears_end)
             if not result.crossing:
@@ -1287,7 +1300,7 @@ def _from_later(image: np.ndarray, later: Curve, look: TubeLook, settings: Track
 
 def _track_one(index, frame, look, history, base_hint, base_end, detection, settings,
                known, search=False, tip_ratio=None, widths: WidthRecord | None = None,
-               typical_residual: float | None = None):
+               typical_residual: float | None = None, typical_length: float | None = None):
     if frame.ndim != 2:
         raise ValueError(f"frame {index} is not a greyscale 2-D array: shape {frame.shape}")
     if look is None or not history:
@@ -1356,16 +1369,31 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
     whole = (r0, r1, c0, c1) == (0, frame.shape[0], 0, frame.shape[1])
     image = crop if whole else None      # the float frame, made once when needed
     cut = not whole and _reaches_crop_edge(r.curve, hw, (r0, r1, c0, c1), frame.shape)
-    if cut or not accept(r) or not steady(r):
+    # (at a crossing only: a coil that lies over itself fits about as well a
+    # step further round, so the checks cannot tell an unsettled fit there;
+    # elsewhere they do, and a fit still moving its end along a fading relief
+    # is the best there is)
+    unsettled = crossing and r.last_move_px > UNSETTLED_MOVE_PX
+    if cut or unsettled or not accept(r) or not steady(r):
         image = as_float(frame) if image is None else image
-        cands = [] if cut else [r]
+        cands = [] if cut or unsettled else [r]
         # without a velocity the prediction is the last shape itself: one start
-        for start in ((pred,) if pred is history[-1] else (pred, history[-1])):
+        starts = (pred,) if pred is history[-1] else (pred, history[-1])
+        for start in starts:
             cands.append(refine(image, start, look, window=1.5 * hw, iterations=10,
                                 avoid_contact=crossing or self_contact(start, hw),
                                 tol_px=tol, tip_ratio=held))
-        r = max(cands, key=rank)
         stage = "wide"
+        held_fits = []
+        if crossing and typical_length is not None:
+            held_fits, freed = _held_length_fits(image, starts, look, typical_length, tol, held)
+            cands += freed
+        r = max(cands, key=rank)
+        if held_fits:
+            # the length held wins unless freeing it fits the edges better
+            h = min(held_fits, key=lambda f: f.residual_px)
+            if accept(h) and (not (accept(r) and steady(r)) or h.residual_px <= r.residual_px):
+                r, stage = h, "length held"
         work = 1.0
         # the frame after a start (no velocity yet) also gets a fresh detection
         # when the fast fit failed: a coarse jointed spline, pulled far from the
@@ -1624,6 +1652,28 @@ def _redetect(image, prev: Curve, look: TubeLook, settings: TrackSettings) -> Re
     # can also run on where the fine one stopped short of the length step: a
     # faint MP4 frame, +5.5 % fine, then +9.8 %)
     return _length_held(image, r, prev, look, tol)
+
+
+def _held_length_fits(image, starts, look: TubeLook, length: float, tol: float,
+                      tip_ratio: float | None) -> tuple[list[Refined], list[Refined]]:
+    """Fits of a tube that crosses itself from each of ``starts`` with its
+    length held at ``length`` (the tube's own on the last frames where it did
+    not cross itself), px; and the fits freed again from each of those.
+
+    Where the tube lies over itself its end hides in the other layer, and a
+    free length wanders with the end search, dragging the shape with it: at a
+    curl that stopped or turned back, 24-34 deg off and then lost. A tube keeps
+    its length from frame to frame, and at that length the coil's edges tell
+    how far round it turns."""
+    held, freed = [], []
+    for start in starts:
+        fit = refine(image, start.with_params(start.coef, length), look,
+                     window=1.5 * look.mean_half_width, iterations=10, fit_length=False,
+                     avoid_contact=True, tol_px=tol, tip_ratio=tip_ratio)
+        held.append(replace(fit, length_held=True))
+        freed.append(refine(image, fit.curve, look, iterations=10, avoid_contact=True,
+                            tol_px=tol, tip_ratio=tip_ratio))
+    return held, freed
 
 
 def _length_held(image, r: Refined, prev: Curve, look: TubeLook, tol: float) -> Refined:

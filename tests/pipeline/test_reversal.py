@@ -1,8 +1,11 @@
 """A tube that curls up and then back (an inflate–deflate cycle): at the
 reversal the constant-velocity prediction overshoots, and a fit that passes the
 checks with residuals many times the video's own is searched again
-(``track.RESIDUAL_JUMP``). A tube that deflates from a tight curl: the frames
-the tracker could not start on are tracked backwards, with the motion."""
+(``track.RESIDUAL_JUMP``); where the tube touches itself, also a fit still
+moving when its rounds ran out (``track.UNSETTLED_MOVE_PX``), with the length
+held at the tube's own (``track._held_length_fits``). A tube that deflates from
+a tight curl: the frames the tracker could not start on are tracked backwards,
+with the motion."""
 
 import json
 
@@ -36,13 +39,42 @@ def test_frames_after_a_reversal_are_found_again(tmp_path, monkeypatch):
     err = errors.angle_error_deg.abs().to_numpy()
     assert (errors.status == "ok").all()
     assert err[:12].max() < 2.0            # curling up: the prediction holds
+    assert err[12] < 2.0                   # the reversal itself (the tip near the base)
     assert err[13:].max() < 2.0            # back down, once past the reversal
 
-    # without the residual check the wrong shape of the reversal is carried on
+    # the reversal's frame, fitted with a free length only, is 34 deg off
+    monkeypatch.setattr(track, "_held_length_fits", lambda *args: ([], []))
+    track_video(folder / "frames", tmp_path / "free", um_per_px=scale)
+    free, _ = score_folder(folder, tmp_path / "free")
+    assert free.angle_error_deg.abs().to_numpy()[12] > 20.0
+    # and without the residual check too, the wrong shape is carried on
     monkeypatch.setattr(track, "RESIDUAL_JUMP", np.inf)
     track_video(folder / "frames", tmp_path / "off", um_per_px=scale)
     off, _ = score_folder(folder, tmp_path / "off")
     assert off.angle_error_deg.abs().to_numpy()[13:].max() > 20.0
+
+
+def test_a_curl_past_a_turn_that_stops_and_turns_back_is_followed(tmp_path, monkeypatch):
+    # sample 3 made softer, curling to 440 deg over its own base in 20 frames,
+    # held there for one, and back: the prediction carries the curl on past
+    # where it stopped, and three Gauss-Newton rounds do not bring it back
+    # (they end still moving 8-13 px), though the fit passes every check
+    pressures = np.linspace(0.0, 0.17, 20)
+    scene = Scene.from_dict({
+        "sample": "3", "eps_max": 0.6397467, "p_max_mpa": 0.17, "width": 800, "height": 600,
+        "base_angle_deg": 180.0, "seed": 14, "look": "transmitted",
+        "pressures_mpa": [float(p) for p in np.concatenate([pressures, pressures[::-1]])]})
+    folder = render_scene(scene, tmp_path / "scene", fmt="png")
+    scale = json.loads((folder / "scene.json").read_text())["layout"]["um_per_px"]
+    track_video(folder / "frames", tmp_path / "out", um_per_px=scale)
+    errors, acc = score_folder(folder, tmp_path / "out")
+    assert acc.frames_lost == 0
+    assert acc.angle_max < 2.0 and acc.length_error_max_pct < 1.0, acc
+
+    monkeypatch.setattr(track, "UNSETTLED_MOVE_PX", np.inf)
+    track_video(folder / "frames", tmp_path / "off", um_per_px=scale)
+    _, off = score_folder(folder, tmp_path / "off")
+    assert off.angle_max > 3.0 and off.length_error_max_pct > 1.0, off
 
 
 def test_frames_tracked_backwards_follow_the_motion(tmp_path, monkeypatch):
