@@ -194,6 +194,12 @@ RESIDUAL_JUMP_FRAMES = 4
 #: (Settled fast fits move under 0.4 px in their last round; at a reversal
 #: 8-17 px.)
 UNSETTLED_MOVE_PX = 0.5
+#: At a crossing, a free fit whose length is within this fraction of the
+#: tube's own (on the last frames where it did not cross itself) is kept; one
+#: further off has found its end in the other layer, and the fit with the
+#: length held may replace it (:func:`_held_length_fits`). Half the length
+#: error asked of the tracker (1 %); lengths jitter by 0.05-0.2 % between frames.
+HELD_LENGTH_STEP = 0.003
 #: Fractions of the detection mask's width tried as the tube's width on the
 #: first fit (the strongest edge pairs win): the mask of a strong, thin band
 #: spreads over its blurred skirts, to twice the width of a 6 px opaque tube;
@@ -1389,7 +1395,9 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
             held_fits, freed = _held_length_fits(image, starts, look, typical_length, tol, held)
             cands += freed
         r = max(cands, key=rank)
-        if held_fits:
+        if held_fits and not (accept(r) and steady(r)
+                              and abs(r.curve.length - typical_length)
+                              <= HELD_LENGTH_STEP * typical_length):
             # the length held wins unless freeing it fits the edges better
             h = min(held_fits, key=lambda f: f.residual_px)
             if accept(h) and (not (accept(r) and steady(r)) or h.residual_px <= r.residual_px):
