@@ -21,7 +21,18 @@ first frame's centreline is long (several tube widths), it is looked at:
   holder of the tube's own look, a tapered glass whose profiles change
   steadily).
 
-Every frame's centreline is then cut there. Not run where the base is given
+Where the motion does not tell (a stage that drifts carries the holder with
+it; a tube bent too little for its own base stretch to leave its line; a fit
+that wobbles inside the glass), the profiles alone are looked at along most of
+the tube: the farthest step of theirs (each against the tube's profile just
+past it) before which the stretch kept its shape on the frames, shifts aside
+(:func:`rigid_wobble`), and, where frames bent far, bent as a tube clamped
+there would (far better than one clamped at the tracked base: a short first
+section of other walls keeps its shape nearly as well).
+
+Every frame's centreline is then cut there, its base tangent the holder's
+axis: the tube's own direction past it where it runs straight on the first
+frame (:func:`holder_axis`). Not run where the base is given
 (``--base``). A tube's own base stretch, free, moves off the first frame's
 line once it bends (by κs²/2); on a thin or little-bent tube it may stay within
 a pixel for a few widths, and the hinge fit then finds it at the tracked base.
@@ -96,6 +107,21 @@ MIN_HINGE_FRAMES = 3
 #: stretch: a spline through holder and tube, whose curvature cannot step,
 #: leaves the holder's line before the holder ends.
 HOLDER_REACH_HW = 6.0
+#: Where the motion does not tell the holder, the stretch before the profiles'
+#: step must keep its shape (:func:`rigid_wobble`) to this many of the tube's
+#: half-widths (and :data:`STILL_PX`) on this share of the frames at least: a
+#: fit may wobble inside the glass on a few (holders on an independent
+#: renderer's scenes: 0.005-0.24 half-widths); a tube's own stretch bends with
+#: the rest, by κs²/2 (first sections of other walls: 0.41 and 0.43). A stage
+#: that drifts bends the stretch too (0.29-0.32: the base is held where it was
+#: found), and is left alone.
+RIGID_HW = 0.3
+WOBBLE_QUANTILE = 0.8
+#: The tube past the holder, from this many of its half-widths past the
+#: holder's end on, gives the holder's axis where it turns by at most
+#: :data:`STRAIGHT_DEG` along its length (:func:`holder_axis`).
+AXIS_CLEAR_HW = 4.0
+STRAIGHT_DEG = 2.0
 #: Status of a frame whose centreline does not pass where the holder ends.
 OFF_HOLDER = "lost: the tube's start not found at the holder's end"
 #: ... and of one whose tube beyond it is far from the first frame's length.
@@ -133,6 +159,34 @@ def static_stretch(results: list[FrameTrack], half_width: float, at_least: float
         if still < at_least:
             break
     return still
+
+
+def rigid_wobble(results: list[FrameTrack], s: float) -> float:
+    """How far the first ``s`` px of the ok frames' centrelines move off the
+    first ok frame's, once each is shifted to fit it best: the
+    :data:`WOBBLE_QUANTILE` quantile over the frames of each frame's largest
+    distance, px (0 with fewer than two ok frames).
+
+    A holder keeps its shape, wherever a drifting stage takes it; a tube's
+    own stretch bends with the rest."""
+    from scipy.spatial import cKDTree
+
+    ok = [r for r in results if r.ok]
+    if len(ok) < 2:
+        return 0.0
+    arc, ref = resample(ok[0].curve, 0.5)
+    tree = cKDTree(np.c_[ref.real, ref.imag][arc <= s])
+    worst = []
+    for r in ok[1:]:
+        arc, z = resample(r.curve, 1.0)
+        z = z[arc <= s] - (r.curve.base - ok[0].curve.base)
+        for _ in range(3):
+            # (the shift that best lays it on the first frame's, from the bases')
+            _, k = tree.query(np.c_[z.real, z.imag])
+            z = z + np.mean(tree.data[k, 0] + 1j * tree.data[k, 1] - z)
+        dist, _ = tree.query(np.c_[z.real, z.imag])
+        worst.append(float(dist.max()))
+    return float(np.quantile(worst, WOBBLE_QUANTILE))
 
 
 def motion_hinge(results: list[FrameTrack], half_width: float, upto: float
@@ -345,6 +399,21 @@ def axis_angle(curve: Curve, s: float) -> float:
     return float(np.mean(phi[(arc >= 0.25 * s) & (arc <= 0.75 * s)]))
 
 
+def holder_axis(curve: Curve, s: float, half_width: float) -> float:
+    """The axis of a holder whose end is ``s`` px along ``curve`` (the
+    first frame's), rad: the tube's own direction where it runs straight on
+    past the holder (a tube leaves its holder along the holder's axis, and
+    its straight stretch, long and clear of the holder, tells that better
+    than a fit through the holder, which may wobble by degrees where the
+    glass and the tube inside it change at its end); else, a bent tube, the
+    holder's own (:func:`axis_angle`)."""
+    arc, _, phi, _ = _sampled(curve, 0.5)
+    past = phi[arc >= s + AXIS_CLEAR_HW * half_width]
+    if past.size >= 4 * half_width and np.ptp(past) <= np.radians(STRAIGHT_DEG):
+        return float(np.mean(past))
+    return axis_angle(curve, s)
+
+
 def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
                 px: float = 1.0) -> tuple[list[FrameTrack], str | None]:
     """Cut a holder taken for the tube off every frame's centreline.
@@ -377,21 +446,58 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
     least = MIN_WIDTHS * 2 * half_width
     still = static_stretch(results, half_width, least)
     first = results[0].curve
-    if still < least:
-        return results, None
-    s, change = profile_change(first_frame(), first, half_width,
-                               still + HOLDER_REACH_HW * half_width)
-    told = (f"its profile stepped there by {change:.0f}x its scatter" if change >= MIN_CHANGE
-            else None)
+    told = None
+    if still >= least:
+        s, change = profile_change(first_frame(), first, half_width,
+                                   still + HOLDER_REACH_HW * half_width)
+        told = (f"the tracked structure's first {s * px:.0f} px stood still on every frame "
+                f"while the rest bent, and its profile stepped there by {change:.0f}x its "
+                "scatter" if change >= MIN_CHANGE else None)
+        if told is None:
+            s, gain, spread = motion_hinge(results, half_width, still + 2 * half_width)
+            if gain >= MIN_HINGE_GAIN and spread <= max(HINGE_SPREAD_PX, 0.25 * half_width):
+                told = (f"the tracked structure's first {s * px:.0f} px stood still on every "
+                        "frame while the rest bent, and the bent frames leave its line there "
+                        "as a tube clamped there would")
     if told is None:
-        s, gain, spread = motion_hinge(results, half_width, still + 2 * half_width)
-        if gain >= MIN_HINGE_GAIN and spread <= max(HINGE_SPREAD_PX, 0.25 * half_width):
-            told = "the bent frames leave its line there as a tube clamped there would"
+        # the motion did not tell (a stage that drifts carries the holder with
+        # it; a tube bent too little; a fit that wobbles inside the glass): the
+        # profiles alone, looked at along most of the tube, where the stretch
+        # before their step kept its shape on every frame, as a holder does and
+        # a tube's own section (of other walls) does not once it bends
+        # (searched ever further, each search against the tube's profile just
+        # past it: a tube's sections further on may have other walls; the
+        # farthest step whose stretch keeps its shape is the holder's end, one
+        # nearer a step along the holder, a taper's or a shading's)
+        image = first_frame()
+        reach = (1.0 - MIN_TUBE_SHARE) * first.length
+        found = None
+        for upto in np.unique(np.minimum(2 * least * 1.5 ** np.arange(12), reach)):
+            at, change = profile_change(image, first, half_width, upto)
+            if change < MIN_CHANGE or at < least or (found and at <= found[0] + 1.0):
+                continue
+            wobble = rigid_wobble(results, at)
+            if wobble > max(STILL_PX, RIGID_HW * half_width):
+                break       # this stretch bends: so does every longer one
+            # where frames bent far, they must also bend as a tube clamped
+            # there would, far better than one clamped at the tracked base: a
+            # short first section of other walls keeps its shape nearly as
+            # well (a 35 px section, 2.7 px; hinge gain 24, holders 577-6800)
+            if _first_and_bent(results)[1]:
+                _, gain, _ = motion_hinge(results, half_width, at + 2 * half_width)
+                if gain < MIN_HINGE_GAIN:
+                    break
+            found = (at, change, wobble)
+        if found is not None:
+            s, change, wobble = found
+            told = (f"the profiles along the tracked structure stepped by {change:.0f}x "
+                    f"their scatter {s * px:.0f} px from its start, and that stretch kept "
+                    f"its shape on the frames (to {wobble * px:.1f} px, its drift aside)")
     if told is None or s < least or first.length - s < MIN_TUBE_SHARE * first.length:
         return results, None
     arc, z, _, _ = _sampled(first, 0.25)
     end = complex(np.interp(s, arc, z.real), np.interp(s, arc, z.imag))
-    axis = axis_angle(first, s)
+    axis = holder_axis(first, s, half_width)
     tol = max(2.0, 0.5 * half_width)
     tube = first.length - s
     out = []
@@ -416,6 +522,5 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
                            fit=(cut_base(r.fit, min(at, 0.5 * r.fit.length), axis)
                                 if r.fit is not None and at >= 1.0 else r.fit),
                            last_section=None))
-    return out, (f"the tracked structure's first {s * px:.0f} px stood still on every frame "
-                 f"while the rest bent, and {told}: a holder (pipette) taken for the tube, cut "
-                 "off every frame (its axis the base tangent)")
+    return out, (f"{told}: a holder (pipette) taken for the tube, cut off every frame (its "
+                 "axis the base tangent)")
