@@ -26,6 +26,7 @@ from .field import field_stop
 from .levels import levels_of
 from .margins import blank_margins
 from .pipette import drop_holder
+from .plug import straighten_plugs
 from .refine import (
     END_CLEAR_HW,
     END_STEP_LEAVE_OUT,
@@ -288,6 +289,7 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
     results, view_note = cut_by_border(
         results, (rows // binning.factor, cols // binning.factor), disc)
     results, ratio_note = hold_section_ratio(results)
+    results, plug_note = straighten_plugs(results, _learnt_half_width(results))
     if binning:
         results = [binning.track_back(r) for r in results]
     if margins:
@@ -305,6 +307,8 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
     notes = _notes(results, stages, base_hint is not None, rate)
     notes.append(_joints_note(results, sample))
     notes.append(ratio_note)
+    if plug_note:
+        notes.append(plug_note)
     notes.append(_look_note(results))
     notes.append(_smoothing_note(results, binning))
     strips_note = _strips_note(results, binning)

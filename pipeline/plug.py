@@ -1,0 +1,118 @@
+"""A sealed tube's straight end plug, told over the video.
+
+The tube's end is sealed with a plug of solid PDMS: no lumen, so no pressure
+inside it to bend it (the wall eccentricity that bends the tube has nothing to
+act on), and it stays straight while the rest curls. The tip's direction is
+then the plug's, which is the tube's where the plug begins, not the arc's
+carried on to the end.
+
+A dark tube's last stretch whose edge midpoints sit off the line the rest of
+the tube's give is found frame by frame (:class:`pipeline.track._EndStepVotes`,
+:attr:`pipeline.refine.Refined.end_steps`), and its side edges are left out of
+the fits. That offset may be the lumen's (an off-centre bore ending before the
+tip: the same offset at every bend), or a straight plug's: the plug leaves the
+arc on its outer side by ``κ·(p − d)²/2`` at ``d`` from the tip, in proportion
+to the bend. The frames tell which: where the offsets grow in proportion to
+the bend (opposite its sense) far better than they stay steady, the stretch
+is a plug, and every frame's centreline is made straight over it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from .centreline import Curve, basis_of, evaluate, make_basis
+from .refine import END_STEP_ZONES_HW
+from .track import FrameTrack
+
+#: Frames with the end's offset measured needed to tell a plug, at least ...
+MIN_FRAMES = 6
+#: ... over a range of bends of at least this, deg.
+MIN_BEND_RANGE_DEG = 60.0
+#: The offsets in proportion to the bend must leave at most this share of the
+#: sum of absolute deviations a steady offset leaves (plugs on an independent
+#: renderer's scenes: 0.27-0.53).
+PROPORTION_SAD = 0.6
+#: The plug's length over the stretch told: the stretch is the one whose
+#: offset, times its weight, is largest, and a plug's offset grows towards the
+#: tip, so it is told short (of plugs 17-24 px long, drawn by this package's
+#: tests and an independent renderer: 0.80-0.87 of them, a quarter half-width
+#: apart).
+PLUG_PER_STRETCH = 1.2
+
+
+def plug_length(results: list[FrameTrack], half_width: float) -> float | None:
+    """The length of a straight plug at the tube's end, px, where the frames
+    tell one (see the module's notes); else None.
+
+    Parameters
+    ----------
+    results : list of FrameTrack
+        The tracked frames: the stretch told (:attr:`FrameTrack.end_step`),
+        and its offsets measured until then (:attr:`FrameTrack.end_steps`).
+    half_width : float
+        The tube's half-width the end's stretches were measured in, px.
+    """
+    told = [r.end_step for r in results if r.ok and r.end_step is not None]
+    # (measured on the frames until the stretch was told)
+    seen = [r for r in results if r.ok and r.end_steps is not None]
+    if not told or len(seen) < MIN_FRAMES or half_width <= 0:
+        return None
+    px = told[0][0]
+    zone = int(np.argmin(np.abs(np.asarray(END_STEP_ZONES_HW) * half_width - px)))
+    bend = np.array([r.bend_angle_rad for r in seen])
+    offset = np.array([r.end_steps[zone, 0] for r in seen])
+    keep = np.isfinite(offset) & np.isfinite(bend)
+    bend, offset = bend[keep], offset[keep]
+    if bend.size < MIN_FRAMES or np.ptp(bend) < np.radians(MIN_BEND_RANGE_DEG):
+        return None
+    # (absolute deviations, the proportion the median of the bent frames':
+    # a frame whose end was misread, 0.66 px where its neighbours sat at
+    # 0.05-0.2, sways neither)
+    bent = np.abs(bend) >= np.radians(MIN_BEND_RANGE_DEG) / 4
+    if not bent.any():
+        return None
+    slope = float(np.median(offset[bent] / bend[bent]))
+    steady = float(np.abs(offset - np.median(offset)).sum())
+    proportional = float(np.abs(offset - slope * bend).sum())
+    if slope < 0.0 and proportional <= PROPORTION_SAD * steady:
+        return float(PLUG_PER_STRETCH * px)
+    return None
+
+
+def straight_end(curve: Curve, length: float) -> Curve:
+    """``curve`` with its last ``length`` px straight, along its direction
+    where that stretch begins (a joint there: its curvature may step to 0).
+
+    The shape before it, the base and the total length are kept; the tip's
+    direction (``coef[-1]``) is the curve's at the stretch's start.
+    """
+    if not 0.0 < length < curve.length:
+        return curve
+    u_plug = 1.0 - length / curve.length
+    basis = basis_of(curve)
+    phi = evaluate(curve, basis).phi - curve.base_angle
+    target = np.where(basis.u < u_plug, phi, np.interp(u_plug, basis.u, phi))
+    joints = tuple(sorted({*(j for j in curve.joints if j < u_plug - 0.02), u_plug}))
+    new = make_basis(curve.coef.size, basis.n_grid, joints)
+    coef, *_ = np.linalg.lstsq(new.values, target, rcond=None)
+    coef[-1] = target[-1]
+    return Curve(curve.base, curve.base_angle, curve.length, coef, joints)
+
+
+def straighten_plugs(results: list[FrameTrack], half_width: float | None
+                     ) -> tuple[list[FrameTrack], str | None]:
+    """Every ok frame's centreline made straight over the tube's end plug,
+    where the frames tell one (:func:`plug_length`); and a line saying so
+    (None where none was told)."""
+    if half_width is None:
+        return results, None
+    plug = plug_length(results, half_width)
+    if plug is None:
+        return results, None
+    out = [replace(r, curve=straight_end(r.curve, plug)) if r.ok else r for r in results]
+    return out, (f"the end's sideways offset grew with the bend, opposite its sense: a straight "
+                 f"plug {plug:.1f} px long (a sealed end, which the pressure does not bend); "
+                 "every frame's tip direction taken where it begins")

@@ -1,0 +1,122 @@
+"""A sealed tube's straight end plug is told by its offsets growing with the bend."""
+
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy.spatial import cKDTree
+from scipy.special import erf
+
+from pipeline import pipette, plug
+from pipeline.centreline import Curve, resample, tip_point
+from pipeline.refine import END_STEP_ZONES_HW
+from pipeline.track import FrameTrack
+from pipeline.tracks import track_video
+
+HW = 8.0
+
+
+def _frames(bends_deg, offsets, step_px=16.0):
+    """FrameTracks bent by ``bends_deg`` whose end stretch (zone nearest
+    ``step_px``) sat ``offsets`` px off the rest's line, that stretch told."""
+    zone = int(np.argmin(np.abs(np.asarray(END_STEP_ZONES_HW) * HW - step_px)))
+    out = []
+    for k, (bend, off) in enumerate(zip(bends_deg, offsets, strict=True)):
+        steps = np.full((len(END_STEP_ZONES_HW), 3), np.nan)
+        steps[zone] = (off, 10.0, 0.02)
+        curve = Curve(0j, 0.0, 300.0, np.linspace(0.0, np.radians(bend), 8))
+        out.append(FrameTrack(k, "ok", curve, "fast", end_steps=steps,
+                              end_step=(step_px, 0.2)))
+    return out
+
+
+BENDS = np.linspace(0.0, -200.0, 10)
+
+
+@pytest.mark.parametrize(("offsets", "told"), [
+    (-0.15 * np.radians(BENDS), True),                      # a plug: with the bend, outwards
+    (np.full(10, 0.2), False),                              # a lumen's step: steady
+    (0.15 * np.radians(BENDS), False),                      # with the bend, but inwards
+    (np.where(np.arange(10) == 5, 0.8, -0.15 * np.radians(BENDS)), True),  # one misread
+])
+def test_a_plug_is_an_offset_in_proportion_to_the_bend(offsets, told):
+    rng = np.random.default_rng(1)
+    results = _frames(BENDS, offsets + rng.normal(0, 0.01, 10))
+    length = plug.plug_length(results, HW)
+    assert (length is not None) == told
+    if told:
+        assert length == pytest.approx(16.0 * plug.PLUG_PER_STRETCH)
+
+
+def test_too_few_or_too_little_bent_frames_tell_no_plug():
+    assert plug.plug_length(_frames(BENDS[:4], -0.15 * np.radians(BENDS[:4])), HW) is None
+    small = np.linspace(0.0, -30.0, 10)
+    assert plug.plug_length(_frames(small, -0.15 * np.radians(small)), HW) is None
+
+
+def test_a_straight_end_keeps_the_arc_before_it():
+    arc = Curve(100 - 200j, 0.3, 300.0, np.linspace(0.0, 2.0, 12))
+    plugged = plug.straight_end(arc, 30.0)
+    s, z = resample(arc, 1.0)
+    s2, z2 = resample(plugged, 1.0)
+    before = s <= 270.0 - 8.0
+    assert np.abs(z[before] - z2[: before.sum()]).max() < 0.1
+    # the tip's direction is the arc's where the plug begins
+    _, _, phi, _ = pipette._sampled(arc, 0.25)
+    assert plugged.coef[-1] == pytest.approx(phi[1080] - arc.base_angle, abs=2e-3)
+    # and the last 30 px run straight along it
+    end = s2 >= 272.0
+    turn = np.unwrap(np.angle(np.diff(z2[end])))
+    assert np.ptp(turn) < np.radians(0.5)
+    assert abs(tip_point(plugged) - (z2[np.argmin(np.abs(s2 - 270.0))]
+                                     + 30.0 * np.exp(1j * (0.3 + plugged.coef[-1])))) < 0.3
+
+
+def _plugged_tube(shape, base, angle, length, kappa, plug_px, hw, noise, seed):
+    """A dark tube bending at ``kappa`` (1/px) up to its last ``plug_px``,
+    which run straight on: drawn from each pixel's distance to the centreline
+    (4x supersampled across the edges by erf), its end cut flat."""
+    s = np.linspace(0.0, length, int(length * 4) + 1)
+    bend = np.minimum(s, length - plug_px)
+    phi = angle + kappa * bend
+    step = np.exp(1j * phi) * np.gradient(s)
+    z = base + np.concatenate([[0], np.cumsum(0.5 * (step[1:] + step[:-1]))])
+    rows, cols = shape
+    rr, cc = np.mgrid[0:rows, 0:cols]
+    pix = cc - 1j * rr
+    dist, k = cKDTree(np.c_[z.real, z.imag]).query(np.c_[pix.real.ravel(), pix.imag.ravel()])
+    along = ((pix.ravel() - z[k]) * np.exp(-1j * phi[k])).real
+    inside = 0.5 * (1 + erf((hw - dist) / 0.7))
+    inside *= np.where((k == 0) & (along < 0), 0.5 * (1 + erf(along / 0.7)), 1.0)
+    inside *= np.where((k == s.size - 1) & (along > 0), 0.5 * (1 + erf(-along / 0.7)), 1.0)
+    img = 0.8 * (1 - 0.35 * inside.reshape(shape))
+    img += np.random.default_rng(seed).normal(0, noise, shape)
+    tip_phi = angle + kappa * (length - plug_px)
+    return np.clip(img, 0, 1).astype(np.float32), z, np.degrees(tip_phi - angle)
+
+
+def test_a_tube_with_a_straight_plug_is_tracked_to_the_plug_s_direction(tmp_path, monkeypatch):
+    import cv2
+
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    base, angle, length, plug_px = 520 - 400j, np.pi, 420.0, 24.0
+    truth = []
+    for k in range(12):
+        kappa = -3.6 * k / 11 / (length - plug_px)
+        img, z, bend = _plugged_tube((480, 640), base, angle, length, kappa - 1e-12, plug_px,
+                                     HW, 0.01, k)
+        cv2.imwrite(str(folder / f"f{k:02d}.png"), (img * 255).round().astype(np.uint8))
+        truth.append(bend)
+    truth = np.array(truth)
+    run = track_video(folder, tmp_path / "out", um_per_px=1.0, base=(520, 400))
+    t = pd.read_csv(tmp_path / "out" / "tracks.csv")
+    assert (t.status == "ok").all()
+    err = np.abs(t.bend_angle_deg - truth)
+    assert any("straight plug" in n for n in run.notes), run.notes
+    assert err.max() < 2.0, err.round(2).tolist()
+    # the arc carried on to the end turns the tip on by the plug's share of the bend
+    monkeypatch.setattr(plug, "PROPORTION_SAD", -1.0)
+    track_video(folder, tmp_path / "arc", um_per_px=1.0, base=(520, 400))
+    arc = pd.read_csv(tmp_path / "arc" / "tracks.csv")
+    assert np.abs(arc.bend_angle_deg - truth).max() > 4.0
