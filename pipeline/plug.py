@@ -20,12 +20,15 @@ is a plug, and every frame's centreline is made straight over it.
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .centreline import Curve, basis_of, evaluate, make_basis
 from .refine import END_STEP_ZONES_HW
-from .track import FrameTrack
+
+if TYPE_CHECKING:
+    from .track import FrameTrack
 
 #: Frames with the end's offset measured needed to tell a plug, at least ...
 MIN_FRAMES = 6
@@ -64,22 +67,30 @@ def plug_length(results: list[FrameTrack], half_width: float) -> float | None:
     zone = int(np.argmin(np.abs(np.asarray(END_STEP_ZONES_HW) * half_width - px)))
     bend = np.array([r.bend_angle_rad for r in seen])
     offset = np.array([r.end_steps[zone, 0] for r in seen])
+    return float(PLUG_PER_STRETCH * px) if grows_with_bend(bend, offset) else None
+
+
+def grows_with_bend(bend: np.ndarray, offset: np.ndarray) -> bool:
+    """Whether an end stretch's offsets (px, along the left normal) over the
+    frames grow in proportion to their bends (rad), outwards, as a straight
+    plug's do, far better than they stay steady, as a lumen's do (see the
+    module's notes): over at least :data:`MIN_FRAMES` frames and
+    :data:`MIN_BEND_RANGE_DEG` of bend."""
+    bend, offset = np.asarray(bend, float), np.asarray(offset, float)
     keep = np.isfinite(offset) & np.isfinite(bend)
     bend, offset = bend[keep], offset[keep]
     if bend.size < MIN_FRAMES or np.ptp(bend) < np.radians(MIN_BEND_RANGE_DEG):
-        return None
+        return False
     # (absolute deviations, the proportion the median of the bent frames':
     # a frame whose end was misread, 0.66 px where its neighbours sat at
     # 0.05-0.2, sways neither)
     bent = np.abs(bend) >= np.radians(MIN_BEND_RANGE_DEG) / 4
-    if not bent.any():
-        return None
     slope = float(np.median(offset[bent] / bend[bent]))
     steady = float(np.abs(offset - np.median(offset)).sum())
     proportional = float(np.abs(offset - slope * bend).sum())
-    if slope < 0.0 and proportional <= PROPORTION_SAD * steady:
-        return float(PLUG_PER_STRETCH * px)
-    return None
+    # (a plug lies on the outer side of the arc: its offset along the left
+    # normal has the sign opposite to the bend's)
+    return slope < 0.0 and proportional <= PROPORTION_SAD * steady
 
 
 def straight_end(curve: Curve, length: float) -> Curve:

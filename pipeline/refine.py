@@ -270,10 +270,11 @@ class TubeLook:
     @property
     def end_step_in_question(self) -> bool:
         """Whether fits measure :attr:`Refined.end_steps`: while
-        :attr:`end_step_px` is not known, on a tube darker than its
-        surroundings at its edges (a brighter one has :attr:`end_in_question`,
-        a relief leaves its end's edges out)."""
-        return self.polarity == -1 and self.end_step_px is None
+        :attr:`end_step_px` is not known, on a tube darker or brighter than
+        its surroundings at its edges (a relief leaves its end's edges out;
+        on a bright one only a straight plug is told from them, see
+        :class:`pipeline.track._EndStepVotes`)."""
+        return self.polarity in (-1, 1) and self.end_step_px is None
 
     def half_width_at(self, u) -> np.ndarray:
         grid = np.linspace(0.0, 1.0, self.half_width.size)

@@ -72,6 +72,7 @@ from .joints import (
     step_windows,
     width_steps,
 )
+from .plug import grows_with_bend
 from .profiles import gradient_noise
 from .refine import (
     END_STEP_ZONES_HW,
@@ -959,7 +960,7 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
             result = replace(result, end_clear=look.clears_end)
             if not result.crossing:
                 look = end_votes.add(result.end_offset, look)
-                look = end_step_votes.add(result.end_steps, look)
+                look = end_step_votes.add(result.end_steps, look, result.bend_angle_rad)
             if look.end_step_px:
                 result = replace(result, end_step=_told_step(look))
             if look.polarity == 0 and look.shear is None and not result.crossing:
@@ -1083,12 +1084,15 @@ class _EndStepVotes:
     """
 
     steps: list[np.ndarray] = field(default_factory=list)
+    bends: list[float] = field(default_factory=list)
 
-    def add(self, steps: np.ndarray | None, look: TubeLook) -> TubeLook:
-        """``look``, with its end's stretch set once the frames so far tell it."""
+    def add(self, steps: np.ndarray | None, look: TubeLook, bend: float = np.nan) -> TubeLook:
+        """``look``, with its end's stretch set once the frames so far tell it
+        (``bend``: the frame's, rad)."""
         if not look.end_step_in_question or steps is None:
             return look
         self.steps.append(steps)
+        self.bends.append(bend)
         if len(self.steps) < END_VOTE_FRAMES:
             return look
         x = np.stack(self.steps)
@@ -1104,8 +1108,12 @@ class _EndStepVotes:
             # the offsets' mean weighted by their noise, in its standard errors
             inv = 1.0 / noise[seen[:, best], best] ** 2
             z_noise = abs(np.sum(col * inv)) / np.sqrt(np.sum(inv))
+            # (a bright tube's only where the offsets grow with the bend, as a
+            # straight plug's do: its shading makes steady "steps" of its own)
             if (mean >= END_OFFSET_MIN_PX and mean >= END_OFFSET_Z * se
-                    and z_noise >= END_STEP_Z):
+                    and z_noise >= END_STEP_Z
+                    and (look.polarity == -1
+                         or grows_with_bend(np.asarray(self.bends)[seen[:, best]], col))):
                 px = END_STEP_ZONES_HW[best] * look.mean_half_width
                 return replace(look, end_step_px=px, end_step_offset=float(col.mean()))
         if len(self.steps) >= END_STEP_MAX_FRAMES:

@@ -57,10 +57,34 @@ def test_the_end_steps_are_how_far_the_ends_midpoints_sit_off_the_rests_line(shi
     if shift:
         assert STEP_PX <= END_STEP_ZONES_HW[best] * HW <= STEP_PX + HW
     assert np.all(np.diff(weight) >= 0) and np.all((se >= 0) & (se < 0.05))
-    # not measured once told, nor on a tube brighter than its surroundings
+    # not measured once told; measured on a tube brighter than its
+    # surroundings too (where only a plug is told from them)
     assert refine(_stepped_tube(shift), _truth(), _look(STEP_PX), iterations=2).end_steps is None
     bright = TubeLook(1, np.full(5, HW), 0.05, end_step_px=None)
-    assert refine(1.0 - _stepped_tube(shift), _truth(), bright, iterations=2).end_steps is None
+    assert refine(1.0 - _stepped_tube(shift), _truth(), bright, iterations=2).end_steps is not None
+
+
+@pytest.mark.parametrize(("polarity", "grows", "told"), [
+    (-1, False, True), (1, False, False), (1, True, True), (-1, True, True)])
+def test_a_bright_tube_s_end_is_told_only_where_it_grows_with_the_bend(polarity, grows, told):
+    # a bright tube's shading makes steady "steps" of its own (7 of 182 own
+    # fluorescent scenes): there only a straight plug's offsets, growing with
+    # the bend, are told
+    votes = _EndStepVotes()
+    look = TubeLook(polarity, np.full(5, HW), 0.05, end_step_px=None)
+    bends = np.radians(np.linspace(-20.0, -200.0, 8))
+    zones = np.asarray(END_STEP_ZONES_HW) * HW
+    for k, bend in enumerate(bends):
+        offset = -0.2 * bend if grows else 0.3
+        steps = np.zeros((zones.size, 3))
+        steps[:, 0] = np.where(zones <= STEP_PX, offset, offset * STEP_PX / zones)
+        steps[:, 1] = zones
+        steps[:, 2] = 0.01
+        steps[:, 0] += np.random.default_rng(k).normal(0.0, 0.01, zones.size)
+        look = votes.add(steps, look, bend)
+        if look.end_step_px is not None:
+            break
+    assert (bool(look.end_step_px) if look.end_step_px is not None else False) == told
 
 
 def _told(shift: float, ramp_px: float = 0.0) -> TubeLook:
