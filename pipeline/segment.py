@@ -508,6 +508,33 @@ def border_distance(point_rc, shape) -> float:
     return float(min(r, c, shape[0] - 1 - r, shape[1] - 1 - c))
 
 
+#: A narrower stretch at the tube's end is a pipette only where it runs on
+#: within this of the tube's line (deg): a fibre or a scratch that the tube's
+#: end touches turns away (a dust fibre from a tube's tip: 74-78 deg, taken for
+#: a pipette and the ends swapped), a pipette holds the tube along its axis (a
+#: tube curled 300 deg from its base: 15-20 deg). (Not asked of a wider
+#: holder: where a capillary's walls meet the tube the skeleton kinks.)
+PIPETTE_IN_LINE_DEG = 45.0
+
+
+def _in_line(path_rc: np.ndarray, split: int, ratio: float, half_width: float) -> bool:
+    """Whether the narrower stretch of ``path_rc`` beyond ``split`` (before
+    it where ``ratio`` > 1) runs on along the tube's line there
+    (:data:`PIPETTE_IN_LINE_DEG`): chords over up to four half-widths of the
+    narrow stretch and two of the tube (which may bend)."""
+    narrow, tube = int(max(3, round(4 * half_width))), int(max(3, round(2 * half_width)))
+    if ratio > 1.0:
+        lo, hi = max(split - narrow, 0), min(split + tube, len(path_rc) - 1)
+    else:
+        lo, hi = max(split - tube, 0), min(split + narrow, len(path_rc) - 1)
+    if split - lo < 2 or hi - split < 2:
+        return True
+    before = path_rc[split] - path_rc[lo]
+    after = path_rc[hi] - path_rc[split]
+    cos = float(before @ after) / max(float(np.hypot(*before) * np.hypot(*after)), 1e-12)
+    return cos >= np.cos(np.radians(PIPETTE_IN_LINE_DEG))
+
+
 def _split_point(width: np.ndarray, trim: int = 0) -> tuple[int, float]:
     """Best single step of a piecewise-constant fit to ``width``: (index, ratio after/before).
 
@@ -687,9 +714,11 @@ def _detect_in(mask: np.ndarray, f: int, base_hint, base_end, *,
             # (a thin-walled one is dimmer under fluorescence). Failing that, the
             # end nearer the border, for the motion test to confirm.
             split, ratio = _split_point(width, trim)
-            if first_b and ratio < 1 / 1.15 and width.size - split > min_pipette:
+            in_line = _in_line(path_rc, split, ratio, half_width)
+            if (first_b and ratio < 1 / 1.15 and width.size - split > min_pipette
+                    and in_line):
                 path_rc, width = path_rc[::-1], width[::-1]
-            elif not (first_b and ratio > 1.15 and split > min_pipette):
+            elif not (first_b and ratio > 1.15 and split > min_pipette and in_line):
                 ambiguous = True
                 if border_distance(path_rc[-1], shape) < border_distance(path_rc[0], shape):
                     path_rc, width = path_rc[::-1], width[::-1]
@@ -699,7 +728,8 @@ def _detect_in(mask: np.ndarray, f: int, base_hint, base_end, *,
         hint = np.array([base_hint[1], base_hint[0]], dtype=float) / f
         split = int(np.argmin(np.hypot(*(path_rc - hint).T)))
         source = "given (--base)"
-    elif ratio > 1.15 and split > min_pipette and _touches_border(path_rc[0], shape, margin):
+    elif (ratio > 1.15 and split > min_pipette and _touches_border(path_rc[0], shape, margin)
+          and _in_line(path_rc, split, ratio, half_width)):
         source = PIPETTE_STEP
     elif (ratio < 1 / HOLDER_RATIO and split > min_pipette
           and _touches_border(path_rc[0], shape, margin)):

@@ -296,3 +296,29 @@ def test_the_end_that_moved_first_is_the_tip_though_the_curl_comes_back_over_the
     assert motion.decided
     assert not motion.base_is_last
     assert motion.frames < 10     # told before the curl came back
+
+
+
+@pytest.mark.parametrize(("turn_deg", "curl", "in_line"), [
+    (0.0, 0.0, True),        # a pipette on the tube's axis
+    (75.0, 0.0, False),      # a dust fibre from the tube's end, turning away
+    (0.0, 300.0, True),      # on the axis of a tube curled 300 deg from it
+])
+def test_a_narrower_stretch_is_a_pipette_only_in_line_with_the_tube(turn_deg, curl, in_line):
+    # (an independent scene: a fibre touching the tube's tip and the frame's
+    # border was taken for a pipette there, and the ends swapped: 14 of 30
+    # frames lost; the fibre turned 74-78 deg from the tube's line)
+    from pipeline.segment import _in_line
+
+    hw, n_narrow, n_tube = 8.0, 80, 300
+    narrow = np.arange(-n_narrow, 0)[:, None] * np.array([[0.0, 1.0]])
+    turn = np.radians(turn_deg)
+    narrow = narrow @ np.array([[1.0, 0.0], [0.0, 1.0]])
+    narrow = np.c_[-np.sin(turn) * narrow[:, 1], np.cos(turn) * narrow[:, 1]]
+    s = np.arange(n_tube, dtype=float)
+    kappa = np.radians(curl) / n_tube
+    phi = kappa * s
+    tube = np.c_[np.cumsum(np.sin(phi)), np.cumsum(np.cos(phi))] - [0.0, 1.0]
+    path = np.r_[narrow, tube]
+    assert _in_line(path, n_narrow, 2.0, hw) == in_line
+    assert _in_line(path[::-1], len(path) - n_narrow, 0.5, hw) == in_line
