@@ -477,22 +477,30 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
             if change < MIN_CHANGE or at < least or (found and at <= found[0] + 1.0):
                 continue
             wobble = rigid_wobble(results, at)
+            bent = bool(_first_and_bent(results)[1])
+            hinge, gain, _ = (motion_hinge(results, half_width, at + 2 * half_width) if bent
+                              else (0.0, 0.0, np.inf))
             if wobble > max(STILL_PX, RIGID_HW * half_width):
-                break       # this stretch bends: so does every longer one
+                # this stretch bends (so does every longer one), unless the
+                # bent frames leave its line right there, as from a clamp:
+                # frames whose base moved along the tube (a restart) shift
+                # the stretch compared onto the tube beyond the holder
+                if not (gain >= MIN_HINGE_GAIN and abs(hinge - at) <= max(2.0, half_width)):
+                    break
             # where frames bent far, they must also bend as a tube clamped
             # there would, far better than one clamped at the tracked base: a
             # short first section of other walls keeps its shape nearly as
             # well (a 35 px section, 2.7 px; hinge gain 24, holders 577-6800)
-            if _first_and_bent(results)[1]:
-                _, gain, _ = motion_hinge(results, half_width, at + 2 * half_width)
-                if gain < MIN_HINGE_GAIN:
-                    break
-            found = (at, change, wobble)
+            elif bent and gain < MIN_HINGE_GAIN:
+                break
+            kept = (f"that stretch kept its shape on the frames (to {wobble * px:.1f} px, "
+                    "its drift aside)" if wobble <= max(STILL_PX, RIGID_HW * half_width)
+                    else "the bent frames leave its line there as a tube clamped there would")
+            found = (at, change, kept)
         if found is not None:
-            s, change, wobble = found
+            s, change, kept = found
             told = (f"the profiles along the tracked structure stepped by {change:.0f}x "
-                    f"their scatter {s * px:.0f} px from its start, and that stretch kept "
-                    f"its shape on the frames (to {wobble * px:.1f} px, its drift aside)")
+                    f"their scatter {s * px:.0f} px from its start, and {kept}")
     if told is None or s < least or first.length - s < MIN_TUBE_SHARE * first.length:
         return results, None
     arc, z, _, _ = _sampled(first, 0.25)
