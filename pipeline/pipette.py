@@ -117,6 +117,9 @@ HOLDER_REACH_HW = 6.0
 #: found), and is left alone.
 RIGID_HW = 0.3
 WOBBLE_QUANTILE = 0.8
+#: ... and the motion looked at there on at most about this many frames,
+#: spread over the video (those scenes had 14-36).
+MOTION_FRAMES = 24
 #: The tube past the holder, from this many of its half-widths past the
 #: holder's end on, gives the holder's axis where it turns by at most
 #: :data:`STRAIGHT_DEG` along its length (:func:`holder_axis`).
@@ -472,13 +475,17 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
         image = first_frame()
         reach = (1.0 - MIN_TUBE_SHARE) * first.length
         found = None
+        # (the motion looked at on frames spread over the video, as many as
+        # the scenes it was measured on had at most: a long video's first
+        # frames' work stays short)
+        spread = results[::max(1, len(results) // MOTION_FRAMES)]
         for upto in np.unique(np.minimum(2 * least * 1.5 ** np.arange(12), reach)):
             at, change = profile_change(image, first, half_width, upto)
             if change < MIN_CHANGE or at < least or (found and at <= found[0] + 1.0):
                 continue
-            wobble = rigid_wobble(results, at)
-            bent = bool(_first_and_bent(results)[1])
-            hinge, gain, _ = (motion_hinge(results, half_width, at + 2 * half_width) if bent
+            wobble = rigid_wobble(spread, at)
+            bent = bool(_first_and_bent(spread)[1])
+            hinge, gain, _ = (motion_hinge(spread, half_width, at + 2 * half_width) if bent
                               else (0.0, 0.0, np.inf))
             if wobble > max(STILL_PX, RIGID_HW * half_width):
                 # this stretch bends (so does every longer one), unless the
