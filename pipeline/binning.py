@@ -92,7 +92,8 @@ class Binning:
                        end_steps=(None if track.end_steps is None
                                   else track.end_steps * np.array([d, 1.0, d])),
                        end_step=(None if track.end_step is None
-                                 else (d * track.end_step[0], d * track.end_step[1])))
+                                 else (d * track.end_step[0], d * track.end_step[1])),
+                       plug_px=None if track.plug_px is None else d * track.plug_px)
 
     def describe(self, half_width: float) -> str:
         """A line for the run's notes; ``half_width`` is the tube's, px."""

@@ -117,9 +117,13 @@ HOLDER_REACH_HW = 6.0
 #: found), and is left alone.
 RIGID_HW = 0.3
 WOBBLE_QUANTILE = 0.8
-#: ... and the motion looked at there on at most about this many frames,
-#: spread over the video (those scenes had 14-36).
+#: ... and the motion looked at there on at most this many frames, spread
+#: over the video (those scenes had 14-36) ...
 MOTION_FRAMES = 24
+#: ... and only where the tube bent by at least this on some frame (deg): a
+#: video that does not bend cannot tell a holder from a first section of other
+#: walls, whose profiles step too.
+PROFILE_MIN_BEND_DEG = 20.0
 #: The tube past the holder, from this many of its half-widths past the
 #: holder's end on, gives the holder's axis where it turns by at most
 #: :data:`STRAIGHT_DEG` along its length (:func:`holder_axis`).
@@ -462,7 +466,10 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
                 told = (f"the tracked structure's first {s * px:.0f} px stood still on every "
                         "frame while the rest bent, and the bent frames leave its line there "
                         "as a tube clamped there would")
-    if told is None:
+    ok = [r for r in results if r.ok]
+    moved = (len(ok) >= MIN_HINGE_FRAMES
+             and max(abs(r.bend_angle_rad) for r in ok) >= np.radians(PROFILE_MIN_BEND_DEG))
+    if told is None and moved:
         # the motion did not tell (a stage that drifts carries the holder with
         # it; a tube bent too little; a fit that wobbles inside the glass): the
         # profiles alone, looked at along most of the tube, where the stretch
@@ -478,7 +485,8 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
         # (the motion looked at on frames spread over the video, as many as
         # the scenes it was measured on had at most: a long video's first
         # frames' work stays short)
-        spread = results[::max(1, len(results) // MOTION_FRAMES)]
+        spread = [ok[k] for k in np.unique(np.linspace(0, len(ok) - 1, MOTION_FRAMES)
+                                           .round().astype(int))]
         for upto in np.unique(np.minimum(2 * least * 1.5 ** np.arange(12), reach)):
             at, change = profile_change(image, first, half_width, upto)
             if change < MIN_CHANGE or at < least or (found and at <= found[0] + 1.0):

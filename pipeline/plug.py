@@ -6,7 +6,7 @@ act on), and it stays straight while the rest curls. The tip's direction is
 then the plug's, which is the tube's where the plug begins, not the arc's
 carried on to the end.
 
-A dark tube's last stretch whose edge midpoints sit off the line the rest of
+A tube's last stretch whose edge midpoints sit off the line the rest of
 the tube's give is found frame by frame (:class:`pipeline.track._EndStepVotes`,
 :attr:`pipeline.refine.Refined.end_steps`), and its side edges are left out of
 the fits. That offset may be the lumen's (an off-centre bore ending before the
@@ -107,23 +107,27 @@ def straight_end(curve: Curve, length: float) -> Curve:
     phi = evaluate(curve, basis).phi - curve.base_angle
     target = np.where(basis.u < u_plug, phi, np.interp(u_plug, basis.u, phi))
     joints = tuple(sorted({*(j for j in curve.joints if j < u_plug - 0.02), u_plug}))
-    new = make_basis(curve.coef.size, basis.n_grid, joints)
+    # (a joint costs two coefficients: the shape before it kept as it was)
+    new = make_basis(max(curve.coef.size + 2, 3 + 3 * len(joints)), basis.n_grid, joints)
     coef, *_ = np.linalg.lstsq(new.values, target, rcond=None)
     coef[-1] = target[-1]
     return Curve(curve.base, curve.base_angle, curve.length, coef, joints)
 
 
-def straighten_plugs(results: list[FrameTrack], half_width: float | None
+def straighten_plugs(results: list[FrameTrack], half_width: float | None, px: float = 1.0
                      ) -> tuple[list[FrameTrack], str | None]:
     """Every ok frame's centreline made straight over the tube's end plug,
     where the frames tell one (:func:`plug_length`); and a line saying so
-    (None where none was told)."""
+    (None where none was told). ``px``: full-frame pixels per pixel of the
+    frames (binning), for the note."""
     if half_width is None:
         return results, None
     plug = plug_length(results, half_width)
     if plug is None:
         return results, None
-    out = [replace(r, curve=straight_end(r.curve, plug)) if r.ok else r for r in results]
+    # (the last section's record describes the curve before, and goes)
+    out = [replace(r, curve=straight_end(r.curve, plug), plug_px=plug, last_section=None)
+           if r.ok else r for r in results]
     return out, (f"the end's sideways offset grew with the bend, opposite its sense: a straight "
-                 f"plug {plug:.1f} px long (a sealed end, which the pressure does not bend); "
-                 "every frame's tip direction taken where it begins")
+                 f"plug {plug * px:.1f} px long (a sealed end, which the pressure does not "
+                 "bend); every frame's tip direction taken where it begins")

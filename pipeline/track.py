@@ -198,8 +198,9 @@ UNSETTLED_MOVE_PX = 0.5
 #: At a crossing, a free fit whose length is within this fraction of the
 #: tube's own (on the last frames where it did not cross itself) is kept; one
 #: further off has found its end in the other layer, and the fit with the
-#: length held may replace it (:func:`_held_length_fits`). Half the length
-#: error asked of the tracker (1 %); lengths jitter by 0.05-0.2 % between frames.
+#: length held may replace it (:func:`_held_length_fits`). Lengths jitter by
+#: 0.05-0.2 % between frames where the end is seen clearly (a free fit 0.24 %
+#: long was 0.8 deg off, the held one 3.2; one 0.47 % long 1.8 deg, held 0.1).
 HELD_LENGTH_STEP = 0.003
 #: Fractions of the detection mask's width tried as the tube's width on the
 #: first fit (the strongest edge pairs win): the mask of a strong, thin band
@@ -413,6 +414,10 @@ class FrameTrack:
         edges left out of the fit, or given an offset of their own), and how
         far its edge midpoints had sat off the rest's line on the frames that
         told it, px (:attr:`pipeline.refine.TubeLook.end_step_px`).
+    plug_px : float, optional
+        The length of the straight plug at the tube's end that ``curve`` was
+        made straight over (:func:`pipeline.plug.straighten_plugs`), px; its
+        start is then ``curve``'s last joint, no section joint.
     """
 
     frame: int
@@ -435,6 +440,7 @@ class FrameTrack:
     end_clear: bool = False
     end_steps: np.ndarray | None = None
     end_step: tuple[float, float] | None = None
+    plug_px: float | None = None
 
     @property
     def ok(self) -> bool:
@@ -1076,11 +1082,12 @@ class _EndStepVotes:
     tip the wrong way where it was noise; a free offset of the stretch's own
     left the blurred step's slope in: see the look's ``end_step_px``.)
 
-    Only on a dark tube: on 7 of the 182 evaluation scenes' fluorescent
-    tubes the same test told a "step" 1-2.5 half-widths long (shading across
-    the tube; on 3 its offset changed sign along the stretches), and leaving
-    it out moved 3 angle medians from 0.2-0.4 to 2-4 deg; the one
-    independent-renderer fluorescent lumen it found gained 1.4 -> 0.8 deg.
+    On a bright tube only where the offsets also grow with the bend, as a
+    straight plug's do (:func:`pipeline.plug.grows_with_bend`): on 7 of the
+    182 evaluation scenes' fluorescent tubes the same test alone told a
+    "step" 1-2.5 half-widths long (shading across the tube; on 3 its offset
+    changed sign along the stretches), and leaving it out moved 3 angle
+    medians from 0.2-0.4 to 2-4 deg.
     """
 
     steps: list[np.ndarray] = field(default_factory=list)
@@ -1407,8 +1414,9 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
                               and abs(r.curve.length - typical_length)
                               <= HELD_LENGTH_STEP * typical_length):
             # the length held wins unless freeing it fits the edges better
-            h = min(held_fits, key=lambda f: f.residual_px)
-            if accept(h) and (not (accept(r) and steady(r)) or h.residual_px <= r.residual_px):
+            passed = [f for f in held_fits if accept(f)]
+            h = min(passed, key=lambda f: f.residual_px) if passed else None
+            if h is not None and (not accept(r) or h.residual_px <= r.residual_px):
                 r, stage = h, "length held"
         work = 1.0
         # the frame after a start (no velocity yet) also gets a fresh detection

@@ -289,7 +289,8 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
     results, view_note = cut_by_border(
         results, (rows // binning.factor, cols // binning.factor), disc)
     results, ratio_note = hold_section_ratio(results)
-    results, plug_note = straighten_plugs(results, _learnt_half_width(results))
+    results, plug_note = straighten_plugs(results, _learnt_half_width(results),
+                                          binning.factor)
     if binning:
         results = [binning.track_back(r) for r in results]
     if margins:
@@ -591,6 +592,8 @@ def _notes(results, stages, base_given: bool, rate) -> list[str]:
                  ("" if n_cross else " (the tube never touched itself)") +
                  (" (only frames whose predicted tube touches itself need it)" if n_cross else ""))
     for stage, why in (("wide", "the fast fit failed its checks"),
+                       ("length held", "where the tube crossed itself and its end hid in "
+                        "the other layer: the shape fitted at the tube's own length"),
                        ("redetect", "the wide search failed too")):
         k = stages.get(stage, 0)
         notes.append(f"{stage} search ran on {k} of {n} frames" +
@@ -614,7 +617,7 @@ def _notes(results, stages, base_given: bool, rate) -> list[str]:
 def _joints_note(results, sample) -> str:
     """Where the centreline was allowed to kink (section joints), and why."""
     good = [r for r in results if r.ok]
-    last = good[-1].curve.joints if good else ()
+    last = _section_joints(good[-1]) if good else ()
     where = ", ".join(f"{j:.3f}" for j in last)
     if sample is not None:
         if not last:
@@ -622,12 +625,19 @@ def _joints_note(results, sample) -> str:
                     "not looked for)")
         return f"section joints from sample {sample.name}'s sections at u = {where} of the length"
     if last:
-        first = next(r.frame for r in good if r.curve.joints)
+        first = next(r.frame for r in good if _section_joints(r))
         return (f"section joints found in the frames at u = {where} of the length (first on "
                 f"frame {first}: steps in the tube's width, or kinks in its shape once bent >= "
                 f"{JOINT_CHECK_DEG:g} deg)")
     return ("section joints: none found (the tube's width did not step, nor its curvature on "
             f"frames bent >= {JOINT_CHECK_DEG:g} deg); give --sample to use its sections")
+
+
+def _section_joints(track: FrameTrack) -> tuple[float, ...]:
+    """The section joints of a frame's curve: not the start of a straight
+    end plug (:attr:`FrameTrack.plug_px`), which is its last joint."""
+    joints = track.curve.joints
+    return joints[:-1] if track.plug_px is not None else joints
 
 
 def _look_note(results) -> str:
@@ -651,9 +661,16 @@ def _look_note(results) -> str:
 
 
 def _end_step_note(results) -> str | None:
-    """Whether a dark tube's end stepped sideways off the rest's line, and
-    what the fits did about it (None where it was not looked for)."""
+    """Whether the tube's end stepped sideways off the rest's line (a
+    lumen's step, or a straight plug's), and what the fits did about it (None
+    where it was not looked for)."""
     told = [r for r in results if r.ok and r.end_step is not None]
+    if told and told[0].plug_px is not None:
+        px, offset = told[0].end_step
+        return (f"the last {px:.1f} px of the tube sat off the line the rest of the tube's give "
+                f"from frame {told[0].frame} on ({offset:+.2f} px then), more the more it "
+                "bent: a straight plug (above); its side edges left out of the fits or given "
+                "an offset of their own, and the tube made straight over it")
     if told:
         px, offset = told[0].end_step
         out = sum(end_step_left_out(r.curve, *r.end_step) for r in told)

@@ -114,9 +114,24 @@ def test_a_tube_with_a_straight_plug_is_tracked_to_the_plug_s_direction(tmp_path
     assert (t.status == "ok").all()
     err = np.abs(t.bend_angle_deg - truth)
     assert any("straight plug" in n for n in run.notes), run.notes
+    # (the plug's start is no section joint)
+    assert any(n.startswith("section joints: none found") for n in run.notes), run.notes
     assert err.max() < 2.0, err.round(2).tolist()
     # the arc carried on to the end turns the tip on by the plug's share of the bend
     monkeypatch.setattr(plug, "PROPORTION_SAD", -1.0)
     track_video(folder, tmp_path / "arc", um_per_px=1.0, base=(520, 400))
     arc = pd.read_csv(tmp_path / "arc" / "tracks.csv")
     assert np.abs(arc.bend_angle_deg - truth).max() > 4.0
+
+
+def test_a_straight_end_fits_a_curve_with_the_fewest_coefficients_its_joints_allow():
+    # three section joints on 14 coefficients (the fewest a short tube gets):
+    # the plug's joint costs two more, and the shape before it is kept
+    arc = Curve(0j, 0.0, 300.0, np.linspace(0.0, 2.0, 14), (0.25, 0.5, 0.75))
+    plugged = plug.straight_end(arc, 20.0)
+    assert plugged.joints == (0.25, 0.5, 0.75, pytest.approx(280.0 / 300.0))
+    assert plugged.coef.size >= 3 + 3 * 4
+    s, z = resample(arc, 1.0)
+    s2, z2 = resample(plugged, 1.0)
+    before = s <= 270.0
+    assert np.abs(z[before] - z2[: before.sum()]).max() < 0.1
