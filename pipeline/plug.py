@@ -59,8 +59,9 @@ def plug_length(results: list[FrameTrack], half_width: float) -> float | None:
         The tube's half-width the end's stretches were measured in, px.
     """
     told = [r.end_step for r in results if r.ok and r.end_step is not None]
-    # (measured on the frames until the stretch was told)
-    seen = [r for r in results if r.ok and r.end_steps is not None]
+    # (measured on the frames until the stretch was told; not where the tube
+    # crossed itself, as the votes did not)
+    seen = [r for r in results if r.ok and r.end_steps is not None and not r.crossing]
     if not told or len(seen) < MIN_FRAMES or half_width <= 0:
         return None
     px = told[0][0]
