@@ -421,6 +421,56 @@ def holder_axis(curve: Curve, s: float, half_width: float) -> float:
     return axis_angle(curve, s)
 
 
+def _profile_holder(ok: list[FrameTrack], image: np.ndarray, half_width: float,
+                    least: float) -> tuple[float, float, float | None] | None:
+    """A holder's end told by the profiles along the first of the ``ok``
+    frames' centrelines, where the motion did not tell it: ``(s, change,
+    wobble)``, ``s`` its arc length (px), ``change`` the profiles' step there,
+    ``wobble`` how far the stretch before it moved (px; None where it seemed
+    to bend and the bent frames' hinge told it instead); None where none.
+
+    The profiles are looked at along most of the tube, ever further, each
+    search against the tube's profile just past it (a tube's sections further
+    on may have other walls). The farthest step whose stretch keeps its shape
+    on the frames is the holder's end (one nearer is a step along the holder,
+    a taper's or a shading's); a tube's own section of other walls does not
+    keep its shape once it bends."""
+    first = ok[0].curve
+    reach = (1.0 - MIN_TUBE_SHARE) * first.length
+    # (the motion looked at on frames spread over the video, as many as the
+    # scenes it was measured on had at most: a long video's first frames'
+    # work stays short)
+    spread = [ok[k] for k in np.unique(np.linspace(0, len(ok) - 1, MOTION_FRAMES)
+                                       .round().astype(int))]
+    bent = bool(_first_and_bent(spread)[1])
+    rigid = max(STILL_PX, RIGID_HW * half_width)
+    found = None
+    for upto in np.unique(np.minimum(2 * least * 1.5 ** np.arange(12), reach)):
+        at, change = profile_change(image, first, half_width, upto)
+        if change < MIN_CHANGE or at < least or (found and at <= found[0] + 1.0):
+            continue
+        wobble = rigid_wobble(spread, at)
+        hinge, gain, _ = (motion_hinge(spread, half_width, at + 2 * half_width) if bent
+                          else (0.0, 0.0, np.inf))
+        if wobble > rigid:
+            # this stretch bends (so does every longer one), unless the bent
+            # frames leave its line right there, as from a clamp: frames whose
+            # base moved along the tube (a restart) shift the stretch compared
+            # onto the tube beyond the holder
+            if not (gain >= MIN_HINGE_GAIN and abs(hinge - at) <= max(2.0, half_width)):
+                break
+            found = (at, change, None)
+        # where frames bent far, they must also bend as a tube clamped there
+        # would, far better than one clamped at the tracked base: a short first
+        # section of other walls keeps its shape nearly as well (a 35 px
+        # section, 2.7 px; hinge gain 24, holders 577-6800)
+        elif bent and gain < MIN_HINGE_GAIN:
+            break
+        else:
+            found = (at, change, wobble)
+    return found
+
+
 def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
                 px: float = 1.0) -> tuple[list[FrameTrack], str | None]:
     """Cut a holder taken for the tube off every frame's centreline.
@@ -471,49 +521,13 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
              and max(abs(r.bend_angle_rad) for r in ok) >= np.radians(PROFILE_MIN_BEND_DEG))
     if told is None and moved:
         # the motion did not tell (a stage that drifts carries the holder with
-        # it; a tube bent too little; a fit that wobbles inside the glass): the
-        # profiles alone, looked at along most of the tube, where the stretch
-        # before their step kept its shape on every frame, as a holder does and
-        # a tube's own section (of other walls) does not once it bends
-        # (searched ever further, each search against the tube's profile just
-        # past it: a tube's sections further on may have other walls; the
-        # farthest step whose stretch keeps its shape is the holder's end, one
-        # nearer a step along the holder, a taper's or a shading's)
-        image = first_frame()
-        reach = (1.0 - MIN_TUBE_SHARE) * first.length
-        found = None
-        # (the motion looked at on frames spread over the video, as many as
-        # the scenes it was measured on had at most: a long video's first
-        # frames' work stays short)
-        spread = [ok[k] for k in np.unique(np.linspace(0, len(ok) - 1, MOTION_FRAMES)
-                                           .round().astype(int))]
-        for upto in np.unique(np.minimum(2 * least * 1.5 ** np.arange(12), reach)):
-            at, change = profile_change(image, first, half_width, upto)
-            if change < MIN_CHANGE or at < least or (found and at <= found[0] + 1.0):
-                continue
-            wobble = rigid_wobble(spread, at)
-            bent = bool(_first_and_bent(spread)[1])
-            hinge, gain, _ = (motion_hinge(spread, half_width, at + 2 * half_width) if bent
-                              else (0.0, 0.0, np.inf))
-            if wobble > max(STILL_PX, RIGID_HW * half_width):
-                # this stretch bends (so does every longer one), unless the
-                # bent frames leave its line right there, as from a clamp:
-                # frames whose base moved along the tube (a restart) shift
-                # the stretch compared onto the tube beyond the holder
-                if not (gain >= MIN_HINGE_GAIN and abs(hinge - at) <= max(2.0, half_width)):
-                    break
-            # where frames bent far, they must also bend as a tube clamped
-            # there would, far better than one clamped at the tracked base: a
-            # short first section of other walls keeps its shape nearly as
-            # well (a 35 px section, 2.7 px; hinge gain 24, holders 577-6800)
-            elif bent and gain < MIN_HINGE_GAIN:
-                break
-            kept = (f"that stretch kept its shape on the frames (to {wobble * px:.1f} px, "
-                    "its drift aside)" if wobble <= max(STILL_PX, RIGID_HW * half_width)
-                    else "the bent frames leave its line there as a tube clamped there would")
-            found = (at, change, kept)
+        # it; a tube bent too little; a fit that wobbles inside the glass)
+        found = _profile_holder(ok, first_frame(), half_width, least)
         if found is not None:
-            s, change, kept = found
+            s, change, wobble = found
+            kept = ("the bent frames leave its line there as a tube clamped there would"
+                    if wobble is None else f"that stretch kept its shape on the frames (to "
+                    f"{wobble * px:.1f} px, its drift aside)")
             told = (f"the profiles along the tracked structure stepped by {change:.0f}x "
                     f"their scatter {s * px:.0f} px from its start, and {kept}")
     if told is None or s < least or first.length - s < MIN_TUBE_SHARE * first.length:

@@ -1410,8 +1410,8 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
             held_fits, freed = _held_length_fits(image, starts, look, typical_length, tol, held)
             cands += freed
         r = max(cands, key=rank)
-        if held_fits and not (accept(r) and steady(r)
-                              and abs(r.curve.length - typical_length)
+        # (at a crossing every fit is steady: its residual is no test there)
+        if held_fits and not (accept(r) and abs(r.curve.length - typical_length)
                               <= HELD_LENGTH_STEP * typical_length):
             # the length held wins unless freeing it fits the edges better
             passed = [f for f in held_fits if accept(f)]
