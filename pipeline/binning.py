@@ -93,7 +93,8 @@ class Binning:
                                   else track.end_steps * np.array([d, 1.0, d])),
                        end_step=(None if track.end_step is None
                                  else (d * track.end_step[0], d * track.end_step[1])),
-                       plug_px=None if track.plug_px is None else d * track.plug_px)
+                       plug_px=None if track.plug_px is None else d * track.plug_px,
+                       stage_shift=d * track.stage_shift)
 
     def describe(self, half_width: float) -> str:
         """A line for the run's notes; ``half_width`` is the tube's, px."""

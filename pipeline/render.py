@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 
 import numpy as np
@@ -80,6 +80,10 @@ class Scene:
         Seed of every random element (noise, flicker, dust).
     pipette_ratio : float
         Pipette outer radius as a fraction of the tube's outer radius at its base.
+    drift_px : float
+        Amplitude of a stage drift, px: the tube and its pipette wander on a
+        smooth path (:meth:`drift`) while the camera's dust and illumination
+        stay; 0 (default) for a still stage.
     """
 
     sample: str = "1"
@@ -102,6 +106,7 @@ class Scene:
     seed: int = 0
     pipette_ratio: float = 0.6
     margin_px: float = 20.0
+    drift_px: float = 0.0
     notes: str = field(default="", compare=False)
 
     def __post_init__(self):
@@ -123,6 +128,9 @@ class Scene:
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a positive number, got {value!r}")
+        if not (np.isfinite(self.drift_px) and 0 <= self.drift_px <= self.margin_px / 2):
+            raise ValueError(f"drift_px must be a number from 0 to half the margin "
+                             f"({self.margin_px / 2:g} px), got {self.drift_px!r}")
         if self.um_per_px is not None and not (np.isfinite(self.um_per_px)
                                                 and self.um_per_px > 0):
             raise ValueError(f"um_per_px must be a positive number, got {self.um_per_px!r}")
@@ -146,6 +154,21 @@ class Scene:
         if p_max is None:
             raise ValueError(f"sample {self.sample} has no p_max: set p_max_mpa")
         return np.linspace(0.0, p_max, self.n_frames)
+
+    def drift(self) -> np.ndarray:
+        """The stage's offset on every frame, px (complex: col + 1j·y, y up),
+        0 on the first: two slow sines on each axis, their phases from the
+        seed, within ``drift_px`` of the start."""
+        t = np.arange(self.n_frames) / max(self.n_frames - 1, 1)
+        if self.drift_px == 0:
+            return np.zeros(self.n_frames, complex)
+        phase = np.random.default_rng([self.seed, 5]).uniform(0, 2 * np.pi, 4)
+        path = (np.sin(2 * np.pi * 0.7 * t + phase[0])
+                + 0.4 * np.sin(2 * np.pi * 2.1 * t + phase[1])
+                + 1j * (np.sin(2 * np.pi * 0.5 * t + phase[2])
+                        + 0.4 * np.sin(2 * np.pi * 1.7 * t + phase[3])))
+        path = path - path[0]
+        return self.drift_px * path / max(float(np.abs(path).max()), 1e-12)
 
     def as_dict(self) -> dict:
         out = asdict(self)
@@ -427,6 +450,7 @@ class Renderer:
         self.sample = get_sample(scene.sample)
         self.layout = scene_layout(scene)
         self.pressures = scene.pressures()
+        self.drift = scene.drift()
         scale = self.layout.um_per_px
         r_out = _outer_radius_um(self.sample) / scale
         # the void sits (t_t − t_b)/2 from the outer centre toward the thin (bottom)
@@ -511,9 +535,12 @@ class Renderer:
             else:
                 acc[rs, cs] *= 1 - value
 
-        arcs = _sections_px(sc, self.layout, float(self.pressures[index]))
+        layout = self.layout
+        if sc.drift_px:
+            layout = replace(layout, base=layout.base + self.drift[index])
+        arcs = _sections_px(sc, layout, float(self.pressures[index]))
         pipe_len = 2.0 * math.hypot(sc.width, sc.height)
-        apply(_stamp(_Piece(self.layout.base, self.layout.angle_rad + math.pi, 0.0, pipe_len,
+        apply(_stamp(_Piece(layout.base, layout.angle_rad + math.pi, 0.0, pipe_len,
                             0, True, False), self.pipette, shape))
         for piece in _pieces(arcs):
             apply(_stamp(piece, self.profiles[piece.profile], shape, plug=self.plug))
@@ -565,7 +592,7 @@ def truth_tables(scene: Scene, layout: Layout | None = None):
     length_max = sample.length_um * max(1.0, float(scene.elongation))
     n_points = int(math.ceil(length_max / scale / 0.9)) + 1
     shapes = ls_shape(sample, p, scene.params(), n_points=n_points)
-    z = layout.to_image(shapes.x_um + 1j * shapes.y_um) * scale
+    z = (layout.to_image(shapes.x_um + 1j * shapes.y_um) + scene.drift()[:, None]) * scale
     sign = -1.0 if scene.mirror else 1.0
     frames = np.arange(p.size)
     time_s = frames / scene.fps

@@ -75,6 +75,9 @@ def _stress_scenes() -> dict:
         "stress_deflating_curl": _deflating(default_scene(1, n_frames=24, seed=26,
                                                           base_angle_deg=300.0, width=640,
                                                           height=480)),
+        # a stage that drifts up to 5 px, carrying tube and pipette
+        "stress_drift": default_scene(2, n_frames=24, seed=27, base_angle_deg=200.0,
+                                      width=640, height=480, drift_px=5.0),
     }
 
 
@@ -335,7 +338,8 @@ def _readme(out: Path, track, speed, calib, vs_n, demo, model_md: str,
         "named stress_* are rendered on the fly in looks and cases the committed scenes do not "
         "cover (stress_deflating*: the video starts bent and unbends, stress_deflating_curl "
         "from a 306° curl; frames the tracker cannot start on are found backwards from the "
-        "first it starts on).", "",
+        "first it starts on; stress_drift: the stage drifts up to 5 px, carrying tube and "
+        "pipette, and the base follows it).", "",
         "![tracking error against bend](tracking_errors.png)", "",
         _growth_line(out / TRACK_FRAMES_FILE, track), "",
         *drawn_section(drawn), "",

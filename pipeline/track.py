@@ -59,6 +59,7 @@ from .centreline import (
     resample,
     tip_point,
 )
+from .drift import StageDrift
 from .joints import (
     MAX_SPACING_F,
     WidthRecord,
@@ -418,6 +419,10 @@ class FrameTrack:
         The length of the straight plug at the tube's end that ``curve`` was
         made straight over (:func:`pipeline.plug.straighten_plugs`), px; its
         start is then ``curve``'s last joint, no section joint.
+    stage_shift : complex
+        How far the stage had carried the holder from where it was when the
+        tracker started, px (y up; :class:`pipeline.drift.StageDrift`), as
+        measured on this frame.
     """
 
     frame: int
@@ -441,6 +446,7 @@ class FrameTrack:
     end_steps: np.ndarray | None = None
     end_step: tuple[float, float] | None = None
     plug_px: float | None = None
+    stage_shift: complex = 0j
 
     @property
     def ok(self) -> bool:
@@ -910,15 +916,35 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
     lengths: list[float] = []
     # (each with its frame as float32)
     pending: list[tuple[FrameTrack, np.ndarray]] | None = [] if base_hint is None else None
+    # the stage's drift, read from the holder around the base (from the first
+    # frame measured on)
+    drift: StageDrift | None = None
+    # (the shift measured on each frame held back for the base's vote)
+    measured: dict[int, complex] = {}
     for index, frame in enumerate(frames):
         det = first_detection if index == 0 else None
+        if drift is not None:
+            # a drifting stage carries the held base, and the shapes that predict
+            # this frame, with it
+            before = drift.followed
+            # (without a motion yet the last shape would leave the tube's own
+            # move in the region)
+            drift.measure(frame, _predict(history) if len(history) >= 2 else None)
+            step = drift.followed - before
+            if step:
+                history = [replace(h, base=h.base + step) for h in history]
+                if held_base is not None and base_hint is None:
+                    held_base = (held_base[0] + step.real, held_base[1] - step.imag)
+        hint = base_hint
+        if base_hint is not None and drift is not None:
+            hint = (base_hint[0] + drift.followed.real, base_hint[1] - drift.followed.imag)
         search = bool(history) and abs(history[-1].coef[-1]) >= search_from
         typical = (float(np.median(residuals))
                    if history and len(residuals) >= RESIDUAL_JUMP_FRAMES else None)
         # a restart finds the base afresh, at the end of the tube nearest the one
         # held before (so that the ends cannot swap); only --base fixes it
         restart_end = held_base if base_hint is None and held_base is not None else base_end
-        result = _track_one(index, frame, look, history, base_hint, restart_end, det, settings,
+        result = _track_one(index, frame, look, history, hint, restart_end, det, settings,
                             known, search, tip_ratio, widths, typical,
                             float(np.median(lengths)) if history and lengths else None)
         if isinstance(result, tuple):  # (re)initialised: a new look, a new history
@@ -979,9 +1005,15 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
                 tip_ratio = None if ratio is None else (result.tracked.joints, ratio)
             # the pipette holds the base still: a restart finds the tube from the
             # same base, so the ends cannot swap (which would flip the angle's sign)
-            held_base = base_hint if base_hint is not None else _base_col_row(result.curve)
+            held_base = hint if base_hint is not None else _base_col_row(result.curve)
+            if drift is None:
+                drift = StageDrift.start(frame, result.tracked, look.mean_half_width)
+            else:
+                result = replace(result, stage_shift=drift.followed)
+                if pending is not None:
+                    measured[index] = drift.shift
             if pending is not None and not result.crossing:
-                votes.add(image, result.tracked, look, settings)
+                votes.add(image, result.tracked, look, settings, result.stage_shift)
         else:
             lost_run += 1
             if lost_run >= RESTART_AFTER:
@@ -991,11 +1023,14 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
             pending.append((result, image))
             if len(votes.points) < BASE_VOTE_FRAMES:
                 continue
-            base, turn = votes.settled(history)
+            pending, restaged = _staged(pending, drift, measured)
+            stage = drift.followed if drift is not None else 0j
+            base, turn = votes.settled(history, stage)
             if base is not None or turn:
-                history = [_moved_base(h, base, turn) for h in history]
+                history = [_moved_base(h, None if base is None else base + stage, turn)
+                           for h in history]
                 held_base = _base_col_row(history[-1])
-            done, pending = _refitted(pending, base, turn, look, settings), None
+            done, pending = _refitted(pending, base, turn, look, settings, restaged), None
         else:
             done = [result]
         for r in done:
@@ -1003,7 +1038,9 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
             if progress is not None:
                 progress(r.frame)
     if pending:  # a video shorter than the vote
-        for r in _refitted(pending, *votes.settled(history), look, settings):
+        pending, restaged = _staged(pending, drift, measured)
+        stage = drift.followed if drift is not None else 0j
+        for r in _refitted(pending, *votes.settled(history, stage), look, settings, restaged):
             yield r
             if progress is not None:
                 progress(r.frame)
@@ -1132,14 +1169,17 @@ class _EndStepVotes:
 class _BaseVotes:
     """Where the first frames show the base (:data:`BASE_VOTE_FRAMES`)."""
 
+    #: where each frame shows it, where the stage stood on the first frame, px
     points: list[complex] = field(default_factory=list)
     #: (|bend|, base tangent measured − the one in use), rad
     turns: list[tuple[float, float]] = field(default_factory=list)
 
     def add(self, image: np.ndarray, curve: Curve, look: TubeLook,
-            settings: TrackSettings) -> None:
-        """This frame's findings, ``curve`` being its fit."""
-        self.points.append(locate_base(image, curve, look).base)
+            settings: TrackSettings, stage: complex = 0j) -> None:
+        """This frame's findings, ``curve`` being its fit and ``stage`` the
+        stage's shift on it (px)."""
+        # (where the stage stood on the first frame: a drifting stage carries it)
+        self.points.append(locate_base(image, curve, look).base - stage)
         # the base tangent as initialise measures it: the pipette's axis, at any
         # bend; else φ(0) free, under the strong roughness penalty that makes it
         # follow the whole tube
@@ -1152,21 +1192,28 @@ class _BaseVotes:
         if _good(fit, look):
             self.turns.append((abs(curve.coef[-1]), fit.curve.base_angle - curve.base_angle))
 
-    def settled(self, history: list[Curve]) -> tuple[complex | None, float]:
-        """Where the base goes and how far its tangent turns (see below)."""
-        return _settled_base(history, self.points), _settled_turn(self.turns)
+    def settled(self, history: list[Curve], stage: complex = 0j
+                ) -> tuple[complex | None, float]:
+        """Where the base goes, where the stage stood on the first frame, and
+        how far its tangent turns (see below); ``stage``: the stage's shift on
+        the last frame of ``history``, px."""
+        return _settled_base(history, self.points, stage), _settled_turn(self.turns)
 
 
-def _settled_base(history: list[Curve], votes: list[complex]) -> complex | None:
+def _settled_base(history: list[Curve], votes: list[complex], stage: complex = 0j
+                  ) -> complex | None:
     """Where the base goes: the median along the base axis of ``votes``, on the
-    axis of the last curve in ``history``; None when that is less than
-    :data:`BASE_MOVE_MIN_PX` from its base (or there is nothing to move)."""
+    axis of the last curve in ``history`` (its base taken back by ``stage``,
+    where the stage stood on the first frame, as the votes are); None when
+    that is less than :data:`BASE_MOVE_MIN_PX` from its base (or there is
+    nothing to move)."""
     if not history or not votes:
         return None
     curve = history[-1]
     axis = np.exp(1j * curve.base_angle)
-    shift = float(np.median(np.real((np.asarray(votes) - curve.base) * np.conj(axis))))
-    return curve.base + shift * axis if abs(shift) > BASE_MOVE_MIN_PX else None
+    base = curve.base - stage
+    shift = float(np.median(np.real((np.asarray(votes) - base) * np.conj(axis))))
+    return base + shift * axis if abs(shift) > BASE_MOVE_MIN_PX else None
 
 
 def _settled_turn(angle_votes: list[tuple[float, float]]) -> float:
@@ -1193,6 +1240,32 @@ def _settled_turn(angle_votes: list[tuple[float, float]]) -> float:
     return turn if abs(turn) >= np.radians(BASE_TURN_MIN_DEG) else 0.0
 
 
+def _staged(pending, drift: StageDrift | None, measured: dict[int, complex]):
+    """The held-back frames, where the stage had taken them (the shift
+    ``measured`` on each) once the drift is followed, and the indices of
+    those moved (to be refitted: :func:`_refitted`)."""
+    if drift is None or not drift.following:
+        return pending, set()
+    out, moved = [], set()
+    for r, image in pending:
+        staged = _on_stage(r, measured.get(r.frame, r.stage_shift))
+        if staged is not r:
+            moved.add(r.frame)
+        out.append((staged, image))
+    return out, moved
+
+
+def _on_stage(r: FrameTrack, shift: complex) -> FrameTrack:
+    """``r`` with its curves moved to where the stage's ``shift`` (px) takes
+    them from where its own :attr:`FrameTrack.stage_shift` did."""
+    step = shift - r.stage_shift
+    if not r.ok or not step:
+        return r
+    return replace(r, curve=replace(r.curve, base=r.curve.base + step),
+                   fit=None if r.fit is None else replace(r.fit, base=r.fit.base + step),
+                   stage_shift=shift)
+
+
 def _moved_base(curve: Curve, base: complex | None, turn: float = 0.0) -> Curve:
     """``curve`` with its base moved along its base axis to abreast of ``base``
     (its tip kept) and its base tangent turned by ``turn`` rad (the shape past
@@ -1205,22 +1278,26 @@ def _moved_base(curve: Curve, base: complex | None, turn: float = 0.0) -> Curve:
 
 
 def _refitted(pending, base: complex | None, turn: float, look: TubeLook | None,
-              settings: TrackSettings) -> list[FrameTrack]:
+              settings: TrackSettings, restaged: set[int] = frozenset()) -> list[FrameTrack]:
     """The held-back results, each measured frame refitted from its base moved
-    to ``base`` and its base tangent turned by ``turn``, and with its end's
+    to ``base`` (where the stage stood on the first frame: each frame's own
+    stage shift is added) and its base tangent turned by ``turn``, and with its end's
     sideways step if the frames after it told one (:class:`_EndStepVotes`;
     kept as it was if that fit fails the checks); the frame that found the
-    base says it was moved. Frames lost before a measured one are then tracked
-    backwards from it."""
+    base says it was moved. The frames ``restaged`` (moved where a drifting
+    stage had taken them: :func:`_staged`) are refitted too. Frames lost
+    before a measured one are then tracked backwards from it."""
     out = []
     moves = base is not None or bool(turn)
     for result, image in pending:
         stepped = (look is not None and bool(look.end_step_px) and result.ok
                    and result.end_step is None)
-        if not result.ok or look is None or not (moves or stepped):
+        if not result.ok or look is None or not (moves or stepped
+                                                 or result.frame in restaged):
             out.append(result)
             continue
-        moved = _moved_base(result.tracked, base, turn) if moves else result.tracked
+        moved = (_moved_base(result.tracked, None if base is None else base + result.stage_shift,
+                             turn) if moves else result.tracked)
         if result.base_source and moves:
             shift = result.tracked.length - moved.length
             said = ([f"moved {abs(shift):.1f} px " + ("towards the tip" if shift > 0 else

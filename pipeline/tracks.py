@@ -22,6 +22,7 @@ from . import schema as S
 from .atomic import write_csv, write_json
 from .binning import Binning
 from .centreline import Curve, resample, tip_point
+from .drift import FOLLOW_MIN_PX
 from .field import field_stop
 from .levels import levels_of
 from .margins import blank_margins
@@ -316,6 +317,7 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
     if strips_note:
         notes.append(strips_note)
     notes.append(_end_note(results))
+    notes.append(_drift_note(results))
     step_note = _end_step_note(results)
     if step_note:
         notes.append(step_note)
@@ -691,6 +693,18 @@ def _end_step_note(results) -> str | None:
         return ("the tube's end did not step sideways: its edge midpoints sat on the line "
                 "the rest of the tube's give")
     return None
+
+
+def _drift_note(results) -> str:
+    """A line on the stage's drift the base followed (:mod:`pipeline.drift`)."""
+    moved = [abs(r.stage_shift) for r in results if r.ok]
+    if moved and max(moved) > 0:
+        return (f"stage drift followed: the holder, and the base with it, moved up to "
+                f"{max(moved):.1f} px from where the first frames show it (the region around "
+                "the base registered on every frame)")
+    return ("stage drift: none followed (the base held where the first frames show it: the "
+            f"region around it moved by less than {FOLLOW_MIN_PX:g} px, or the tube entered "
+            "from the frame's border)")
 
 
 def _end_note(results) -> str:
