@@ -47,6 +47,13 @@ REGION_MAX_PX = 128
 #: tube's width.
 HOLDER_HW = 4.0
 HOLDER_MIN_PX = 10.0
+#: The holder must show: at least this share of the region's gradient energy
+#: lies behind the base (past a half-width) or beside the tube (past
+#: BESIDE_HW half-widths from its line). (Holders: pipettes, capillaries, a
+#: clamp's edge, on two renderers: 0.21-0.91; a fluorescent tube whose pipette
+#: does not show: 0.02, its glow registered as a creeping 0.6 px drift.)
+HOLDER_SHARE = 0.1
+BESIDE_HW = 1.5
 #: A base within this many half-widths of the frame's border is where the tube
 #: enters the view, not a holder's mouth: it is not followed.
 BORDER_HW = 2.0
@@ -64,7 +71,7 @@ COVERED = 0.02
 #: the region's (the flat background tells nothing) ...
 GRADIENT_QUANTILE = 0.5
 #: ... at most this many of them (every k-th beyond).
-MAX_PIXELS = 2500
+MAX_PIXELS = 1500
 #: Residuals past this many robust SDs are weighed down (Huber): what moves
 #: other than the stage (the tube where the prediction missed it, flicker of
 #: dust).
@@ -77,7 +84,7 @@ ROUNDS = 8
 #: less than this (px): the fine one reaches that far.
 COARSE_STEP_PX = 0.5
 #: Rounds stop once the shift changes by less than this, px.
-TOL_PX = 0.005
+TOL_PX = 0.02
 #: A direction whose gradient energy is below this share of the region's
 #: strongest is not fitted at all (numerically degenerate) ...
 APERTURE = 1e-3
@@ -86,13 +93,16 @@ APERTURE = 1e-3
 #: mouth, a tube's end inside it: 0.01-0.05).
 MAX_SE_PX = 0.05
 #: The drift is followed once it has been measured at least this far (px)
-#: from the start, on this many frames in a row: a stage that stands still
+#: from the start, on this many frames measured in a row: a stage that stands still
 #: leaves the tracking as it was, whatever the registration's scatter (0.01-0.15
 #: px on still scenes; up to 0.55 on single frames of a noisy fluorescent one,
 #: no pipette in view). (The frames held back for the base's vote are then
 #: moved where the stage had taken them.)
 FOLLOW_MIN_PX = 0.5
 FOLLOW_FRAMES = 3
+#: While the drift is not followed, the region is registered on every this
+#: many frames only (then on every one): a still stage needs little watching.
+STILL_EVERY = 2
 #: A frame whose shift lies farther than this (px per frame) from the last
 #: one measured is not measured: a stage drifts, it does not jump.
 MAX_STEP_PX = 3.0
@@ -122,6 +132,8 @@ class StageDrift:
         The stage's shift from the first frame, px (y up).
     step : complex
         The shift's change on the last frame measured, px.
+    fresh : bool
+        Whether the last frame looked at was measured.
     largest : float
         The largest shift measured so far, px.
     away : int
@@ -141,6 +153,7 @@ class StageDrift:
     shift: complex = 0j
     largest: float = 0.0
     step: complex = 0j
+    fresh: bool = False
     away: int = 0
     since: int = 0
     following: bool = False
@@ -151,7 +164,8 @@ class StageDrift:
     def start(cls, image: np.ndarray, curve: Curve, half_width: float) -> StageDrift | None:
         """The region around ``curve``'s base on ``image`` (a frame, any
         dtype); None where the base lies at the frame's border
-        (:data:`BORDER_HW`) or too little of the region tells a shift."""
+        (:data:`BORDER_HW`), no holder shows (:data:`HOLDER_SHARE`) or too
+        little of the region tells a shift."""
         reach = float(np.clip(REGION_HW * half_width, REGION_MIN_PX, REGION_MAX_PX))
         col, row = curve.base.real, -curve.base.imag
         rows, cols = image.shape
@@ -174,6 +188,12 @@ class StageDrift:
         grad = np.hypot(cv2.Sobel(fine, cv2.CV_32F, 1, 0), cv2.Sobel(fine, cv2.CV_32F, 0, 1))
         inside &= grad >= np.quantile(grad[inside], GRADIENT_QUANTILE)
         inside &= grad > 0
+        # a holder in view: the region's detail lies behind the base or beside
+        # the tube (not only at the tube's own end: a fluorescent tube whose
+        # pipette does not show, whose glow bends with it)
+        holder = inside & ((along < -half_width) | (np.abs(across) > BESIDE_HW * half_width))
+        if np.sum(grad[holder] ** 2) < HOLDER_SHARE * np.sum(grad[inside] ** 2):
+            return None
         region = cls((r0, r1, c0, c1), ref, inside, resample(curve, 1.0)[1], half_width)
         # (the tube past its first widths left out: it bends)
         region.inside = inside & ~region._drawn([region.line[_tube_start(half_width):]])
@@ -186,6 +206,15 @@ class StageDrift:
         row, else 0."""
         return self.shift if self.following else 0j
 
+    def due(self) -> bool:
+        """Whether this frame is to be measured (:data:`STILL_EVERY`); if not,
+        it is counted as passed (call :meth:`measure` or this once a frame)."""
+        if self.following or self.since + 1 >= STILL_EVERY:
+            return True
+        self.since += 1
+        self.fresh = False
+        return False
+
     def measure(self, image: np.ndarray, predicted: Curve | None) -> complex:
         """The stage's shift on ``image`` (a frame, any dtype: the gain is
         fitted) from the first frame, px (y up); the last one measured where
@@ -197,6 +226,7 @@ class StageDrift:
         # (not extrapolated: a direction the region does not tell stays put)
         guess = self.shift
         self.since += 1
+        self.fresh = False
         keep = self.inside
         self.measured += 1
         if predicted is not None:
@@ -222,7 +252,8 @@ class StageDrift:
         d = np.array([guess.real, -guess.imag])    # (cols, rows)
         fit = None
         # (the coarse scale only where the stage may have moved far since)
-        scales = SCALES_PX if self.since > 1 or abs(self.step) > COARSE_STEP_PX else SCALES_PX[1:]
+        scales = (SCALES_PX if self.since > STILL_EVERY or abs(self.step) > COARSE_STEP_PX
+                  else SCALES_PX[1:])
         if yy.size >= REGION_MIN_PX**2 // 4:
             for s in scales:
                 smooth = cv2.GaussianBlur(window, (0, 0), s)
@@ -237,7 +268,7 @@ class StageDrift:
                 or abs(new - self.shift) > MAX_STEP_PX * self.since):
             self.missed += 1
             return self.shift
-        self.step, self.shift, self.since = new - self.shift, new, 0
+        self.step, self.shift, self.since, self.fresh = new - self.shift, new, 0, True
         self.largest = max(self.largest, abs(new))
         self.away = self.away + 1 if abs(new) >= FOLLOW_MIN_PX else 0
         self.following = self.following or self.away >= FOLLOW_FRAMES

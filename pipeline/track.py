@@ -919,25 +919,32 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
     # the stage's drift, read from the holder around the base (from the first
     # frame measured on)
     drift: StageDrift | None = None
+    # (the shift followed by earlier starts' drifts: a restart finds the base
+    # afresh, and its drift is measured from there)
+    carried = 0j
     # (the shift measured on each frame held back for the base's vote)
     measured: dict[int, complex] = {}
+
+    def followed() -> complex:
+        return carried + (drift.followed if drift is not None else 0j)
     for index, frame in enumerate(frames):
         det = first_detection if index == 0 else None
         if drift is not None:
             # a drifting stage carries the held base, and the shapes that predict
             # this frame, with it
-            before = drift.followed
+            before = followed()
             # (without a motion yet the last shape would leave the tube's own
             # move in the region)
-            drift.measure(frame, _predict(history) if len(history) >= 2 else None)
-            step = drift.followed - before
+            if drift.due():
+                drift.measure(frame, _predict(history) if len(history) >= 2 else None)
+            step = followed() - before
             if step:
                 history = [replace(h, base=h.base + step) for h in history]
                 if held_base is not None and base_hint is None:
                     held_base = (held_base[0] + step.real, held_base[1] - step.imag)
         hint = base_hint
-        if base_hint is not None and drift is not None:
-            hint = (base_hint[0] + drift.followed.real, base_hint[1] - drift.followed.imag)
+        if base_hint is not None:
+            hint = (base_hint[0] + followed().real, base_hint[1] - followed().imag)
         search = bool(history) and abs(history[-1].coef[-1]) >= search_from
         typical = (float(np.median(residuals))
                    if history and len(residuals) >= RESIDUAL_JUMP_FRAMES else None)
@@ -950,6 +957,10 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
         if isinstance(result, tuple):  # (re)initialised: a new look, a new history
             old_look, (result, look) = look, result
             history, residuals, lengths = [], [], []
+            if drift is not None:
+                # (the stage measured from this start's region: an earlier
+                # start's may have been on something else)
+                carried, drift, measured = followed(), None, {}
             if pending is not None:
                 # the base is voted on by this start's frames: an earlier start,
                 # lost since, may have been on something else (a curl's first
@@ -1008,12 +1019,11 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
             held_base = hint if base_hint is not None else _base_col_row(result.curve)
             if drift is None:
                 drift = StageDrift.start(frame, result.tracked, look.mean_half_width)
-            else:
-                result = replace(result, stage_shift=drift.followed)
-                if pending is not None:
-                    measured[index] = drift.shift
+            elif pending is not None and drift.fresh:
+                measured[index] = carried + drift.shift
+            result = replace(result, stage_shift=followed())
             if pending is not None and not result.crossing:
-                votes.add(image, result.tracked, look, settings, result.stage_shift)
+                votes.add(image, result.tracked, look, settings, index, result.stage_shift)
         else:
             lost_run += 1
             if lost_run >= RESTART_AFTER:
@@ -1023,11 +1033,11 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
             pending.append((result, image))
             if len(votes.points) < BASE_VOTE_FRAMES:
                 continue
-            pending, restaged = _staged(pending, drift, measured)
-            stage = drift.followed if drift is not None else 0j
-            base, turn = votes.settled(history, stage)
+            path = _stage_path(pending, drift, measured)
+            pending, restaged = _staged(pending, path)
+            base, turn = votes.settled(history, followed(), path)
             if base is not None or turn:
-                history = [_moved_base(h, None if base is None else base + stage, turn)
+                history = [_moved_base(h, None if base is None else base + followed(), turn)
                            for h in history]
                 held_base = _base_col_row(history[-1])
             done, pending = _refitted(pending, base, turn, look, settings, restaged), None
@@ -1038,9 +1048,10 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
             if progress is not None:
                 progress(r.frame)
     if pending:  # a video shorter than the vote
-        pending, restaged = _staged(pending, drift, measured)
-        stage = drift.followed if drift is not None else 0j
-        for r in _refitted(pending, *votes.settled(history, stage), look, settings, restaged):
+        path = _stage_path(pending, drift, measured)
+        pending, restaged = _staged(pending, path)
+        for r in _refitted(pending, *votes.settled(history, followed(), path), look, settings,
+                           restaged):
             yield r
             if progress is not None:
                 progress(r.frame)
@@ -1169,17 +1180,21 @@ class _EndStepVotes:
 class _BaseVotes:
     """Where the first frames show the base (:data:`BASE_VOTE_FRAMES`)."""
 
-    #: where each frame shows it, where the stage stood on the first frame, px
+    #: where each frame shows it, px, and the frame
     points: list[complex] = field(default_factory=list)
+    frames: list[int] = field(default_factory=list)
+    #: the stage's shift each frame's fit followed, px
+    stages: list[complex] = field(default_factory=list)
     #: (|bend|, base tangent measured − the one in use), rad
     turns: list[tuple[float, float]] = field(default_factory=list)
 
     def add(self, image: np.ndarray, curve: Curve, look: TubeLook,
-            settings: TrackSettings, stage: complex = 0j) -> None:
-        """This frame's findings, ``curve`` being its fit and ``stage`` the
-        stage's shift on it (px)."""
-        # (where the stage stood on the first frame: a drifting stage carries it)
-        self.points.append(locate_base(image, curve, look).base - stage)
+            settings: TrackSettings, frame: int = 0, stage: complex = 0j) -> None:
+        """This frame's findings, ``curve`` being its fit on frame ``frame``
+        and ``stage`` the stage's shift that fit followed (px)."""
+        self.points.append(locate_base(image, curve, look).base)
+        self.frames.append(frame)
+        self.stages.append(stage)
         # the base tangent as initialise measures it: the pipette's axis, at any
         # bend; else φ(0) free, under the strong roughness penalty that makes it
         # follow the whole tube
@@ -1192,12 +1207,18 @@ class _BaseVotes:
         if _good(fit, look):
             self.turns.append((abs(curve.coef[-1]), fit.curve.base_angle - curve.base_angle))
 
-    def settled(self, history: list[Curve], stage: complex = 0j
-                ) -> tuple[complex | None, float]:
+    def settled(self, history: list[Curve], stage: complex = 0j,
+                path: dict[int, complex] | None = None) -> tuple[complex | None, float]:
         """Where the base goes, where the stage stood on the first frame, and
         how far its tangent turns (see below); ``stage``: the stage's shift on
-        the last frame of ``history``, px."""
-        return _settled_base(history, self.points, stage), _settled_turn(self.turns)
+        the last frame of ``history``, px; ``path``: the stage's shift on the
+        frames voting, by frame, where known (else the one their fits
+        followed)."""
+        path = path or {}
+        # (where the stage stood on the first frame: a drifting stage carries it)
+        points = [p - path.get(f, s)
+                  for p, f, s in zip(self.points, self.frames, self.stages, strict=True)]
+        return _settled_base(history, points, stage), _settled_turn(self.turns)
 
 
 def _settled_base(history: list[Curve], votes: list[complex], stage: complex = 0j
@@ -1240,15 +1261,29 @@ def _settled_turn(angle_votes: list[tuple[float, float]]) -> float:
     return turn if abs(turn) >= np.radians(BASE_TURN_MIN_DEG) else 0.0
 
 
-def _staged(pending, drift: StageDrift | None, measured: dict[int, complex]):
-    """The held-back frames, where the stage had taken them (the shift
-    ``measured`` on each) once the drift is followed, and the indices of
-    those moved (to be refitted: :func:`_refitted`)."""
-    if drift is None or not drift.following:
-        return pending, set()
+def _stage_path(pending, drift: StageDrift | None, measured: dict[int, complex]
+                ) -> dict[int, complex]:
+    """The stage's shift on each measured frame held back, by frame, once the
+    drift is followed (empty before): the shifts ``measured`` on some of them,
+    interpolated between (from the first frame's own)."""
+    ok = [r for r, _ in pending if r.ok]
+    if drift is None or not drift.following or not measured or not ok:
+        return {}
+    at = sorted(measured)
+    frames = [ok[0].frame] + at
+    shifts = np.array([ok[0].stage_shift] + [measured[k] for k in at])
+    ok = [r.frame for r in ok]
+    return {f: complex(np.interp(f, frames, shifts.real), np.interp(f, frames, shifts.imag))
+            for f in ok if f >= ok[0]}
+
+
+def _staged(pending, path: dict[int, complex]):
+    """The held-back frames, where the stage had taken them (``path``: its
+    shift by frame, see :func:`_stage_path`), and the indices of those moved
+    (to be refitted: :func:`_refitted`)."""
     out, moved = [], set()
     for r, image in pending:
-        staged = _on_stage(r, measured.get(r.frame, r.stage_shift))
+        staged = _on_stage(r, path[r.frame]) if r.frame in path else r
         if staged is not r:
             moved.add(r.frame)
         out.append((staged, image))

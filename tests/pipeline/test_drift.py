@@ -96,7 +96,7 @@ def test_a_drifting_stage_carries_the_base(tmp_path, monkeypatch):
     given, stretch, _ = base_error(tmp_path / "given")
     # (no frames held back for a vote there: those before the drift is told
     # keep the base where it was given)
-    told = drift.FOLLOW_FRAMES
+    told = drift.FOLLOW_FRAMES * drift.STILL_EVERY
     assert given[told:].max() < 1.0 and stretch[told:].max() < 0.005
     assert given[:told].max() > 1.0
     # held where the first frames show it, the base is px off and the length too
