@@ -125,7 +125,8 @@ MOTION_FRAMES = 24
 #: walls, whose profiles step too.
 PROFILE_MIN_BEND_DEG = 20.0
 #: The tube past the holder, from this many of its half-widths past the
-#: holder's end on, gives the holder's axis where it turns by at most
+#: holder's end on (and as far short of its own end), gives the holder's axis
+#: where it turns by at most
 #: :data:`STRAIGHT_DEG` along its length (:func:`holder_axis`).
 AXIS_CLEAR_HW = 4.0
 STRAIGHT_DEG = 2.0
@@ -415,7 +416,9 @@ def holder_axis(curve: Curve, s: float, half_width: float) -> float:
     glass and the tube inside it change at its end); else, a bent tube, the
     holder's own (:func:`axis_angle`)."""
     arc, _, phi, _ = _sampled(curve, 0.5)
-    past = phi[arc >= s + AXIS_CLEAR_HW * half_width]
+    # (clear of the holder's end and of the tube's: a fit's end wanders)
+    past = phi[(arc >= s + AXIS_CLEAR_HW * half_width)
+               & (arc <= curve.length - AXIS_CLEAR_HW * half_width)]
     if past.size >= 4 * half_width and np.ptp(past) <= np.radians(STRAIGHT_DEG):
         return float(np.mean(past))
     return axis_angle(curve, s)
