@@ -12,14 +12,17 @@ The holder's stretch behind the base (a band along the base's line, from a
 half-width past it back some twelve half-widths: a capillary's mouth, a tube's
 end inside it; not the background, where a camera's dust and shading stay put
 while the stage drifts), without the tube past its first widths (it bends; a
-coil may pass over the holder), is registered on each frame against the first
-frame's: a translation, with a gain and an offset for the light's flicker,
-fitted by Gauss-Newton on the smoothed images (Lucas-Kanade), residuals
-weighed down past two robust SDs. A straight holder shows no shift along
-itself: a direction measured no better than 0.05 px keeps its last shift, so
-a tube entering from the border is not slid along it by noise. The tracker
-follows the drift only once it has reached half a pixel: a still stage leaves
-the tracking as it was.
+coil may pass over the holder), is registered against the first frame's (on
+every other frame while the stage stands still, then on every one): a
+translation, with a gain and an offset for the light's flicker, fitted by
+Gauss-Newton on the smoothed images (Lucas-Kanade), residuals weighed down
+past two robust SDs. A straight holder shows no shift along itself: a
+direction measured no better than 0.05 px keeps its last shift, so a tube
+entering from the border is not slid along it by noise. The tracker follows
+the drift only once it has been measured half a pixel away on three frames in
+a row: a still stage leaves the tracking as it was. Not looked for where no
+holder shows (the region's detail all at the tube's own end), where the base
+lies at the frame's border, nor on frames whose tube lies over the holder.
 
 (scikit-image's ``phase_cross_correlation`` takes masks but then gives whole
 pixels only; OpenCV's ``findTransformECC`` takes one mask and fails where a
@@ -43,8 +46,8 @@ REGION_HW = 12.0
 REGION_MIN_PX = 24
 REGION_MAX_PX = 128
 #: The holder is looked for this far from the base's line (the tube's
-#: half-widths, and at least px): a glass capillary may be several times the
-#: tube's width.
+#: half-widths, and at least px): a glass capillary twice the tube's width
+#: (the independent renderer's, 1.35-4 times its radius).
 HOLDER_HW = 4.0
 HOLDER_MIN_PX = 10.0
 #: The holder must show: at least this share of the region's gradient energy
@@ -80,8 +83,9 @@ HUBER_SD = 2.0
 #: per frame) then fine (precision).
 SCALES_PX = (2.5, 1.0)
 ROUNDS = 8
-#: The coarse scale is skipped where the last frame was measured and moved
-#: less than this (px): the fine one reaches that far.
+#: The coarse scale is skipped where no frame due was missed since the last
+#: measured and that one moved less than this (px): the fine one reaches that
+#: far.
 COARSE_STEP_PX = 0.5
 #: Rounds stop once the shift changes by less than this, px.
 TOL_PX = 0.02
@@ -89,8 +93,10 @@ TOL_PX = 0.02
 #: strongest is not fitted at all (numerically degenerate) ...
 APERTURE = 1e-3
 #: ... and one whose shift is measured no better than this (standard error,
-#: px) keeps its start (a straight holder along itself: 0.1-1; a capillary's
-#: mouth, a tube's end inside it: 0.01-0.05).
+#: px, as if the residuals were independent: an empirical bar, they are
+#: smoothed) keeps its start (a straight holder along itself: 0.1-1; a
+#: capillary's mouth, a tube's end inside it: 0.01-0.05). (Bilinear sampling
+#: places to 1/32 px: the registration is good to a few hundredths.)
 MAX_SE_PX = 0.05
 #: The drift is followed once it has been measured at least this far (px)
 #: from the start, on this many frames measured in a row: a stage that stands still
@@ -142,7 +148,10 @@ class StageDrift:
     following : bool
         Whether the drift is followed (see :attr:`followed`).
     measured, missed : int
-        Frames measured, and those whose region did not tell the shift.
+        Frames looked at, and those not measured among them (the tube over
+        the holder, the fit failed or jumped).
+    since : int
+        Frames since the last one measured.
     """
 
     box: tuple[int, int, int, int]
@@ -188,16 +197,18 @@ class StageDrift:
         grad = np.hypot(cv2.Sobel(fine, cv2.CV_32F, 1, 0), cv2.Sobel(fine, cv2.CV_32F, 0, 1))
         inside &= grad >= np.quantile(grad[inside], GRADIENT_QUANTILE)
         inside &= grad > 0
+        region = cls((r0, r1, c0, c1), ref, inside, resample(curve, 1.0)[1], half_width)
+        # (the tube past its first widths left out: it bends)
+        inside &= ~region._drawn([region.line[_tube_start(half_width):]])
         # a holder in view: the region's detail lies behind the base or beside
         # the tube (not only at the tube's own end: a fluorescent tube whose
         # pipette does not show, whose glow bends with it)
         holder = inside & ((along < -half_width) | (np.abs(across) > BESIDE_HW * half_width))
-        if np.sum(grad[holder] ** 2) < HOLDER_SHARE * np.sum(grad[inside] ** 2):
+        if (inside.sum() < REGION_MIN_PX**2 // 4
+                or np.sum(grad[holder] ** 2) < HOLDER_SHARE * np.sum(grad[inside] ** 2)):
             return None
-        region = cls((r0, r1, c0, c1), ref, inside, resample(curve, 1.0)[1], half_width)
-        # (the tube past its first widths left out: it bends)
-        region.inside = inside & ~region._drawn([region.line[_tube_start(half_width):]])
-        return region if region.inside.sum() >= REGION_MIN_PX**2 // 4 else None
+        region.inside = inside
+        return region
 
     @property
     def followed(self) -> complex:
@@ -238,7 +249,8 @@ class StageDrift:
                 # with the tube as much as with the stage
                 self.missed += 1
                 return self.shift
-            keep &= ~over
+            # (not in place: the region stays the first frame's)
+            keep = keep & ~over
         pad = int(np.ceil(abs(guess))) + 2 + int(3 * max(SCALES_PX))
         rows, cols = image.shape
         w0, w1 = max(r0 - pad, 0), min(r1 + pad, rows)
@@ -264,7 +276,7 @@ class StageDrift:
                     break
                 d = fit[0]
         new = complex(d[0], -d[1])
-        if (fit is None or fit[1] < MIN_R2
+        if (fit is None or not (fit[1] >= MIN_R2) or not np.isfinite(new)
                 or abs(new - self.shift) > MAX_STEP_PX * self.since):
             self.missed += 1
             return self.shift
@@ -346,6 +358,8 @@ def _register(image, gx, gy, ref, xs, ys, d0):
     if told.shape[1] == 0:
         return None
     d = d0 + told @ (told.T @ (d - d0))
+    # (r² of the last round's residuals, before its step: the fit's quality,
+    # not its last hundredth of a pixel)
     mean = np.average(val, weights=w)
     total = float(np.sum(w * (val - mean) ** 2))
     r2 = 1.0 - float(np.sum(w * e**2)) / total if total > 0 else 0.0

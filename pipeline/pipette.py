@@ -480,15 +480,7 @@ def on_first_stage(results: list[FrameTrack]) -> list[FrameTrack]:
     carries the holder, and the base the tracker followed it with, so a holder
     keeps its place only where the stage stood still."""
     origin = results[0].stage_shift if results else 0j
-    return [_moved(r, origin - r.stage_shift) for r in results]
-
-
-def _moved(r: FrameTrack, step: complex) -> FrameTrack:
-    """``r`` with its curves moved by ``step`` (px)."""
-    if not r.ok or not step:
-        return r
-    return replace(r, curve=replace(r.curve, base=r.curve.base + step),
-                   fit=None if r.fit is None else replace(r.fit, base=r.fit.base + step))
+    return [r.moved(origin - r.stage_shift) for r in results]
 
 
 def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
@@ -553,7 +545,7 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
             told = (f"the profiles along the tracked structure stepped by {change:.0f}x "
                     f"their scatter {s * px:.0f} px from its start, and {kept}")
     if told is None or s < least or first.length - s < MIN_TUBE_SHARE * first.length:
-        return [_moved(r, r.stage_shift - origin) for r in results], None
+        return [r.moved(r.stage_shift - origin) for r in results], None
     arc, z, _, _ = _sampled(first, 0.25)
     end = complex(np.interp(s, arc, z.real), np.interp(s, arc, z.imag))
     axis = holder_axis(first, s, half_width)
@@ -577,10 +569,10 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
             continue
         # (the fit shares the curve's base: cut at the same arc length; the
         # last section's record describes the uncut spline, and goes)
-        out.append(_moved(replace(
+        out.append(replace(
             r, curve=cut_base(r.curve, at, axis) if at >= 1.0 else r.curve,
             fit=(cut_base(r.fit, min(at, 0.5 * r.fit.length), axis)
                  if r.fit is not None and at >= 1.0 else r.fit),
-            last_section=None), r.stage_shift - origin))
+            last_section=None).moved(r.stage_shift - origin))
     return out, (f"{told}: a holder (pipette) taken for the tube, cut off every frame (its "
                  "axis the base tangent)")

@@ -421,8 +421,10 @@ class FrameTrack:
         start is then ``curve``'s last joint, no section joint.
     stage_shift : complex
         How far the stage had carried the holder from where it was when the
-        tracker started, px (y up; :class:`pipeline.drift.StageDrift`), as
-        measured on this frame.
+        tracker started, px (y up; :class:`pipeline.drift.StageDrift`): the
+        shift this frame's base followed (0 until the drift is followed; the
+        last measured on frames not measured; interpolated on the frames held
+        back for the base's vote).
     """
 
     frame: int
@@ -447,6 +449,15 @@ class FrameTrack:
     end_step: tuple[float, float] | None = None
     plug_px: float | None = None
     stage_shift: complex = 0j
+
+    def moved(self, step: complex) -> FrameTrack:
+        """This frame with its curves moved by ``step`` (px, y up)."""
+        if not step:
+            return self
+
+        def move(curve):
+            return None if curve is None else replace(curve, base=curve.base + step)
+        return replace(self, curve=move(self.curve), fit=move(self.fit))
 
     @property
     def ok(self) -> bool:
@@ -922,12 +933,18 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
     # (the shift followed by earlier starts' drifts: a restart finds the base
     # afresh, and its drift is measured from there)
     carried = 0j
-    # (the shift measured on each frame held back for the base's vote)
+    # (the shift measured on each frame held back for the base's vote, where
+    # the stage stood on the first frame; from the frame the drift's region
+    # was taken on, this start's)
     measured: dict[int, complex] = {}
+    # (the region is looked for once per start: on its first frame measured)
+    looked = False
 
     def followed() -> complex:
         return carried + (drift.followed if drift is not None else 0j)
     for index, frame in enumerate(frames):
+        if frame.ndim != 2:
+            raise ValueError(f"frame {index} is not a greyscale 2-D array: shape {frame.shape}")
         det = first_detection if index == 0 else None
         if drift is not None:
             # a drifting stage carries the held base, and the shapes that predict
@@ -957,10 +974,9 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
         if isinstance(result, tuple):  # (re)initialised: a new look, a new history
             old_look, (result, look) = look, result
             history, residuals, lengths = [], [], []
-            if drift is not None:
-                # (the stage measured from this start's region: an earlier
-                # start's may have been on something else)
-                carried, drift, measured = followed(), None, {}
+            # (the stage measured from this start's region: an earlier start's
+            # may have been on something else)
+            carried, drift, measured, looked = followed(), None, {}, False
             if pending is not None:
                 # the base is voted on by this start's frames: an earlier start,
                 # lost since, may have been on something else (a curl's first
@@ -1017,14 +1033,17 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
             # the pipette holds the base still: a restart finds the tube from the
             # same base, so the ends cannot swap (which would flip the angle's sign)
             held_base = hint if base_hint is not None else _base_col_row(result.curve)
-            if drift is None:
+            if not looked:
+                looked = True
                 drift = StageDrift.start(frame, result.tracked, look.mean_half_width)
-            elif pending is not None and drift.fresh:
+                measured = {index: carried} if drift is not None else {}
+            elif drift is not None and pending is not None and drift.fresh:
                 measured[index] = carried + drift.shift
             result = replace(result, stage_shift=followed())
             if pending is not None and not result.crossing:
                 votes.add(image, result.tracked, look, settings, index, result.stage_shift)
         else:
+            result = replace(result, stage_shift=followed())
             lost_run += 1
             if lost_run >= RESTART_AFTER:
                 # the last good shape may itself be wrong: start afresh
@@ -1209,11 +1228,11 @@ class _BaseVotes:
 
     def settled(self, history: list[Curve], stage: complex = 0j,
                 path: dict[int, complex] | None = None) -> tuple[complex | None, float]:
-        """Where the base goes, where the stage stood on the first frame, and
-        how far its tangent turns (see below); ``stage``: the stage's shift on
-        the last frame of ``history``, px; ``path``: the stage's shift on the
-        frames voting, by frame, where known (else the one their fits
-        followed)."""
+        """``(base, turn)``: where the base goes (where the stage stood on
+        the first frame; None: where it is) and how far its tangent turns
+        (see below). ``stage``: the stage's shift on the last frame of
+        ``history``, px; ``path``: its shift on the frames voting, by frame,
+        where known (else the one their fits followed)."""
         path = path or {}
         # (where the stage stood on the first frame: a drifting stage carries it)
         points = [p - path.get(f, s)
@@ -1263,42 +1282,45 @@ def _settled_turn(angle_votes: list[tuple[float, float]]) -> float:
 
 def _stage_path(pending, drift: StageDrift | None, measured: dict[int, complex]
                 ) -> dict[int, complex]:
-    """The stage's shift on each measured frame held back, by frame, once the
-    drift is followed (empty before): the shifts ``measured`` on some of them,
-    interpolated between (from the first frame's own)."""
-    ok = [r for r, _ in pending if r.ok]
-    if drift is None or not drift.following or not measured or not ok:
+    """The stage's shift on each measured frame held back since the drift's
+    region was taken (the first of ``measured``), by frame, once the drift is
+    followed (empty before): the shifts ``measured`` on some of them,
+    interpolated between. (Frames of an earlier start keep their own.)"""
+    if drift is None or not drift.following or len(measured) < 2:
         return {}
     at = sorted(measured)
-    frames = [ok[0].frame] + at
-    shifts = np.array([ok[0].stage_shift] + [measured[k] for k in at])
-    ok = [r.frame for r in ok]
-    return {f: complex(np.interp(f, frames, shifts.real), np.interp(f, frames, shifts.imag))
-            for f in ok if f >= ok[0]}
+    shifts = np.array([measured[k] for k in at])
+    return {r.frame: complex(np.interp(r.frame, at, shifts.real),
+                             np.interp(r.frame, at, shifts.imag))
+            for r, _ in pending if r.ok and r.frame >= at[0]}
 
 
 def _staged(pending, path: dict[int, complex]):
     """The held-back frames, where the stage had taken them (``path``: its
-    shift by frame, see :func:`_stage_path`), and the indices of those moved
-    (to be refitted: :func:`_refitted`)."""
-    out, moved = [], set()
+    shift by frame, see :func:`_stage_path`; not where that is within
+    :data:`RESTAGE_MIN_PX` of where they were fitted), and those moved, as
+    they were, by frame (to be refitted, or kept as they were where the refit
+    fails: :func:`_refitted`)."""
+    out, moved = [], {}
     for r, image in pending:
-        staged = _on_stage(r, path[r.frame]) if r.frame in path else r
-        if staged is not r:
-            moved.add(r.frame)
-        out.append((staged, image))
+        if r.frame in path and abs(path[r.frame] - r.stage_shift) >= RESTAGE_MIN_PX:
+            moved[r.frame] = r
+            r = _on_stage(r, path[r.frame])
+        out.append((r, image))
     return out, moved
+
+
+#: A held-back frame is moved where the stage had taken it only from this far
+#: (px): a refit for less changes nothing.
+RESTAGE_MIN_PX = 0.05
 
 
 def _on_stage(r: FrameTrack, shift: complex) -> FrameTrack:
     """``r`` with its curves moved to where the stage's ``shift`` (px) takes
     them from where its own :attr:`FrameTrack.stage_shift` did."""
-    step = shift - r.stage_shift
-    if not r.ok or not step:
+    if not r.ok or shift == r.stage_shift:
         return r
-    return replace(r, curve=replace(r.curve, base=r.curve.base + step),
-                   fit=None if r.fit is None else replace(r.fit, base=r.fit.base + step),
-                   stage_shift=shift)
+    return replace(r.moved(shift - r.stage_shift), stage_shift=shift)
 
 
 def _moved_base(curve: Curve, base: complex | None, turn: float = 0.0) -> Curve:
@@ -1313,15 +1335,17 @@ def _moved_base(curve: Curve, base: complex | None, turn: float = 0.0) -> Curve:
 
 
 def _refitted(pending, base: complex | None, turn: float, look: TubeLook | None,
-              settings: TrackSettings, restaged: set[int] = frozenset()) -> list[FrameTrack]:
+              settings: TrackSettings, restaged: dict | None = None) -> list[FrameTrack]:
     """The held-back results, each measured frame refitted from its base moved
     to ``base`` (where the stage stood on the first frame: each frame's own
     stage shift is added) and its base tangent turned by ``turn``, and with its end's
     sideways step if the frames after it told one (:class:`_EndStepVotes`;
     kept as it was if that fit fails the checks); the frame that found the
     base says it was moved. The frames ``restaged`` (moved where a drifting
-    stage had taken them: :func:`_staged`) are refitted too. Frames lost
-    before a measured one are then tracked backwards from it."""
+    stage had taken them, by frame, as they were: :func:`_staged`) are
+    refitted too, and kept as they were where that fails. Frames lost before
+    a measured one are then tracked backwards from it."""
+    restaged = restaged or {}
     out = []
     moves = base is not None or bool(turn)
     for result, image in pending:
@@ -1347,7 +1371,7 @@ def _refitted(pending, base: complex | None, turn: float, look: TubeLook | None,
         out.append(replace(result, curve=_reported(r), fit=r.curve, residual_px=r.residual_px,
                            valid_fraction=r.valid_fraction, last_section=r.last_section,
                            end_clear=look.clears_end, end_step=_told_step(look))
-                   if _good(r, look) else result)
+                   if _good(r, look) else restaged.get(result.frame, result))
     # a held-back frame that bent away from the frames either side of it and
     # back (the frame after a start has no motion to be predicted from, and a
     # fresh detection can hook into noise by a faint tip and fit as well) is
@@ -1364,18 +1388,20 @@ def _refitted(pending, base: complex | None, turn: float, look: TubeLook | None,
     # from the nearest measured frame after it (and the motion from the one
     # after that)
     later = after = None
+    stage = 0j
     for i in range(len(out) - 1, -1, -1):
         if not out[i].ok and later is not None and look is not None:
             crossing = self_contact(later, look.mean_half_width)
             r = _from_later(pending[i][1], later, look, settings, crossing, after)
             if r is not None:
+                # (where the stage stood on the frame it was found from)
                 out[i] = FrameTrack(out[i].frame, "ok", _reported(r), "backward", r.residual_px,
                                     r.valid_fraction, fit=r.curve, crossing=crossing,
                                     last_section=r.last_section,
-                                    end_step=_told_step(look))
+                                    end_step=_told_step(look), stage_shift=stage)
         # a motion only between consecutive frames
         after = later if out[i].ok and i + 1 < len(out) and out[i + 1].ok else None
-        later = out[i].tracked if out[i].ok else later
+        later, stage = (out[i].tracked, out[i].stage_shift) if out[i].ok else (later, stage)
     return out
 
 
@@ -1434,8 +1460,6 @@ def _from_later(image: np.ndarray, later: Curve, look: TubeLook, settings: Track
 def _track_one(index, frame, look, history, base_hint, base_end, detection, settings,
                known, search=False, tip_ratio=None, widths: WidthRecord | None = None,
                typical_residual: float | None = None, typical_length: float | None = None):
-    if frame.ndim != 2:
-        raise ValueError(f"frame {index} is not a greyscale 2-D array: shape {frame.shape}")
     if look is None or not history:
         image = as_float(frame)
         init = initialise(image, base_hint=base_hint, base_end=base_end, detection=detection,

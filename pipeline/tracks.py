@@ -295,7 +295,7 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
     if binning:
         results = [binning.track_back(r) for r in results]
     if margins:
-        results = [_moved(r, margins.offset) for r in results]
+        results = [r.moved(margins.offset) for r in results]
     runtime = time.perf_counter() - start
     if um_per_px is not None:
         scale, scale_source = um_per_px, "given (--um-per-px)"
@@ -317,7 +317,7 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
     if strips_note:
         notes.append(strips_note)
     notes.append(_end_note(results))
-    notes.append(_drift_note(results))
+    notes.append(_drift_note(results, base_hint is not None))
     step_note = _end_step_note(results)
     if step_note:
         notes.append(step_note)
@@ -376,14 +376,6 @@ class _Mapped:
     def first(self) -> np.ndarray:
         """The first frame, seen through ``view`` (the reader decodes it once)."""
         return self._view(self._frames.first)
-
-
-def _moved(track: FrameTrack, offset: complex) -> FrameTrack:
-    """``track`` with its curves moved by ``offset`` (px, y up): from a crop's
-    pixels to the whole frame's."""
-    def move(curve):
-        return None if curve is None else replace(curve, base=curve.base + offset)
-    return replace(track, curve=move(track.curve), fit=move(track.fit))
 
 
 def _first_detection(frames, base_hint=None):
@@ -695,16 +687,18 @@ def _end_step_note(results) -> str | None:
     return None
 
 
-def _drift_note(results) -> str:
+def _drift_note(results, base_given: bool) -> str:
     """A line on the stage's drift the base followed (:mod:`pipeline.drift`)."""
     moved = [abs(r.stage_shift) for r in results if r.ok]
+    held = "as given" if base_given else "where the first frames show it"
     if moved and max(moved) > 0:
         return (f"stage drift followed: the holder, and the base with it, moved up to "
-                f"{max(moved):.1f} px from where the first frames show it (the region around "
-                "the base registered on every frame)")
-    return ("stage drift: none followed (the base held where the first frames show it: the "
-            f"region around it moved by less than {FOLLOW_MIN_PX:g} px, or the tube entered "
-            "from the frame's border)")
+                f"{max(moved):.1f} px from {held} (the holder's region behind the base "
+                "registered against the first frame's: on every other frame while still, on "
+                "every one once it drifts)")
+    return (f"stage drift: none followed (the base held {held}: the holder's region did not "
+            f"move by {FOLLOW_MIN_PX:g} px on three frames in a row, or no holder showed, or "
+            "the tube entered from the frame's border)")
 
 
 def _end_note(results) -> str:

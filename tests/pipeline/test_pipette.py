@@ -175,7 +175,7 @@ def test_a_given_base_is_not_cut(tmp_path):
     t = pd.read_csv(tmp_path / "out" / "tracks.csv")
     assert t.length_um.min() > LENGTH + 150
     run = json.loads((tmp_path / "out" / "run.json").read_text())
-    assert not any("holder" in n for n in run["left_out_and_why"])
+    assert not any("taken for the tube, cut off" in n for n in run["left_out_and_why"])
 
 
 def test_a_shading_along_the_tube_is_no_step():
