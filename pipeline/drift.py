@@ -175,10 +175,24 @@ class StageDrift:
 
     @classmethod
     def start(cls, image: np.ndarray, curve: Curve, half_width: float) -> StageDrift | None:
-        """The region around ``curve``'s base on ``image`` (a frame, any
-        dtype); None where the base lies at the frame's border
-        (:data:`BORDER_HW`), no holder shows (:data:`HOLDER_SHARE`) or too
-        little of the region tells a shift."""
+        """The holder's region behind ``curve``'s base on ``image``.
+
+        Parameters
+        ----------
+        image : (rows, cols) ndarray
+            The frame the tracker started on, any dtype (the gain is fitted).
+        curve : Curve
+            The tube found on it, px (y up).
+        half_width : float
+            The tube's half-width, px.
+
+        Returns
+        -------
+        StageDrift or None
+            None where the base lies at the frame's border (:data:`BORDER_HW`),
+            no holder shows (:data:`HOLDER_SHARE`) or too little of the region
+            tells a shift.
+        """
         reach = float(np.clip(REGION_HW * half_width, REGION_MIN_PX, REGION_MAX_PX))
         col, row = curve.base.real, -curve.base.imag
         rows, cols = image.shape
@@ -231,12 +245,25 @@ class StageDrift:
         return False
 
     def measure(self, image: np.ndarray, predicted: Curve | None) -> complex:
-        """The stage's shift on ``image`` (a frame, any dtype: the gain is
-        fitted) from the first frame, px (y up); the last one measured where
-        this frame does not tell it. ``predicted`` is where the tube is
-        expected on it, if known from its motion (where it lies over the
-        region, it is left out; where it covers more than :data:`COVERED` of
-        it, the frame is not measured)."""
+        """The stage's shift on this frame from the first.
+
+        Parameters
+        ----------
+        image : (rows, cols) ndarray
+            The frame, any dtype (the gain is fitted).
+        predicted : Curve or None
+            Where the tube is expected on it, px (y up), if known from its
+            motion: where it lies over the region it is left out, and where
+            it covers more than :data:`COVERED` of it the frame is not
+            measured. None: the whole tube past its first widths on the
+            first frame is left out.
+
+        Returns
+        -------
+        complex
+            The shift, px (y up): the last one measured where this frame does
+            not tell it (:attr:`fresh` says which).
+        """
         r0, r1, c0, c1 = self.box
         # (not extrapolated: a direction the region does not tell stays put)
         guess = self.shift
@@ -311,11 +338,28 @@ def _tube_start(half_width: float) -> int:
 
 
 def _register(image, gx, gy, ref, xs, ys, d0):
-    """Gauss-Newton fit of ``image(x + d) ≈ g·ref + o`` over the points
-    (``xs``, ``ys``) of the window, residuals weighed by Huber's rule
-    (:data:`HUBER_SD`); ``(d, r²)``, or None where no direction is measured.
-    Directions below :data:`APERTURE` of the gradient energy, or measured no
-    better than :data:`MAX_SE_PX`, keep ``d0``'s."""
+    """Gauss-Newton fit of ``image(x + d) ≈ g·ref + o``, residuals weighed by
+    Huber's rule (:data:`HUBER_SD`).
+
+    Parameters
+    ----------
+    image, gx, gy : (rows, cols) float32 ndarray
+        The smoothed window of the frame and its gradients (per px).
+    ref : (N,) ndarray
+        The first frame's smoothed values at the points.
+    xs, ys : (N,) float32 ndarray
+        The points, the window's columns and rows.
+    d0 : (2,) array
+        The start, (columns, rows) px.
+
+    Returns
+    -------
+    (d, r2) or None
+        The shift (columns, rows) px, and the share of the points' variance
+        the fit explains; None where no direction is measured. Directions
+        below :data:`APERTURE` of the gradient energy, or measured no better
+        than :data:`MAX_SE_PX`, keep ``d0``'s.
+    """
     d0 = np.asarray(d0, float)
     d = d0.copy()
     ref = ref.astype(np.float32)
