@@ -363,3 +363,21 @@ def test_a_holder_is_cut_where_frames_restarted_along_it_leave_its_line(monkeypa
     # with the stretch's shape alone asked for, the holder stays
     monkeypatch.setattr(pipette, "MIN_HINGE_GAIN", np.inf)
     assert pipette.drop_holder(results, lambda: img, HW)[1] is None
+
+
+def test_a_holder_s_end_is_its_steepest_fall_not_the_halo_s_tail():
+    # the profiles' difference from the tube's along the first frame, 1 px
+    # apart: the holder at 16, its end a sharp fall at 30.5 to 10, then a
+    # halo's slow tail down to the tube's 2 by 42 (phase contrast); before it
+    # a feature along the holder (the tube's end inside the glass: 25 -> 16),
+    # and the first profile like the tube's at 44
+    s = np.arange(60.0)
+    amp = np.full(s.size, 16.0)
+    amp[:17] = 25.0
+    amp[17:19] = [21.0, 17.0]
+    amp[31:] = np.interp(s[31:], [31, 42], [10.0, 2.0])
+    assert pipette._half_way(s, amp**2, 44, 14.0) == pytest.approx(30.5, abs=0.5)
+    # a sharp end (no halo) with a steeper feature 1.5 half-widths before it:
+    # the feature's fall does not reach half its level within a half-width
+    amp = np.r_[np.full(15, 25.0), np.full(16, 15.0), [8.0], np.full(28, 1.0)]
+    assert pipette._half_way(s, amp**2, 33, 10.0) == pytest.approx(31.0, abs=0.5)
