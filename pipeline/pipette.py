@@ -129,6 +129,13 @@ PROFILE_MIN_BEND_DEG = 20.0
 #: where it turns by at most
 #: :data:`STRAIGHT_DEG` along its length (:func:`holder_axis`).
 AXIS_CLEAR_HW = 4.0
+#: Where it does not run straight, the holder's profiles out to this many
+#: half-widths either side are mirrored about their centres
+#: (:func:`symmetric_axis`: a capillary up to 4 times the tube's radius), ...
+SYMMETRY_HW = 5.0
+#: ... and the centres must lie on a line to this (RMS, px): the holders of
+#: an independent renderer, 0.01-0.2 px.
+SYMMETRY_LINE_PX = 0.5
 STRAIGHT_DEG = 2.0
 #: Status of a frame whose centreline does not pass where the holder ends.
 OFF_HOLDER = "lost: the tube's start not found at the holder's end"
@@ -425,21 +432,84 @@ def axis_angle(curve: Curve, s: float) -> float:
     return float(np.mean(phi[(arc >= 0.25 * s) & (arc <= 0.75 * s)]))
 
 
-def holder_axis(curve: Curve, s: float, half_width: float) -> float:
+def holder_axis(curve: Curve, s: float, half_width: float,
+                image: np.ndarray | None = None) -> float:
     """The axis of a holder whose end is ``s`` px along ``curve`` (the
-    first frame's), rad: the tube's own direction where it runs straight on
-    past the holder (a tube leaves its holder along the holder's axis, and
-    its straight stretch, long and clear of the holder, tells that better
-    than a fit through the holder, which may wobble by degrees where the
-    glass and the tube inside it change at its end); else, a bent tube, the
-    holder's own (:func:`axis_angle`)."""
+    first frame's, on ``image``), rad.
+
+    The tube's own direction where it runs straight on past the holder (a
+    tube leaves its holder along the holder's axis, and its straight stretch,
+    long and clear of the holder, tells that better than a fit through the
+    holder, which may wobble by degrees where the glass and the tube inside it
+    change). Else, a bent tube: the line through the holder's own centres of
+    symmetry (:func:`symmetric_axis`), where it is a line; else the fit's
+    mean direction through the holder (:func:`axis_angle`).
+    """
     arc, _, phi, _ = _sampled(curve, 0.5)
     # (clear of the holder's end and of the tube's: a fit's end wanders)
     past = phi[(arc >= s + AXIS_CLEAR_HW * half_width)
                & (arc <= curve.length - AXIS_CLEAR_HW * half_width)]
     if past.size >= 4 * half_width and np.ptp(past) <= np.radians(STRAIGHT_DEG):
         return float(np.mean(past))
+    if image is not None:
+        axis = symmetric_axis(image, curve, s, half_width)
+        if axis is not None:
+            return axis
     return axis_angle(curve, s)
+
+
+def symmetric_axis(image: np.ndarray, curve: Curve, s: float,
+                   half_width: float) -> float | None:
+    """The axis of the holder along ``curve``'s first ``s`` px, rad: the line
+    through the centres about which its profiles (across ``curve``, out to
+    :data:`SYMMETRY_HW` half-widths) are most nearly mirror images; a glass
+    capillary, a band and the tube inside them are symmetric about it, and
+    a fit through them may wander by several px (12 px inside a tapered
+    capillary). None where those centres do not lie on a line to
+    :data:`SYMMETRY_LINE_PX` (RMS), or the stretch is too short.
+
+    Parameters
+    ----------
+    image : (rows, cols) float ndarray
+        The frame ``curve`` was measured on.
+    curve : Curve
+        px (y up).
+    s : float
+        The holder's length along ``curve``, px.
+    half_width : float
+        The tube's, px.
+    """
+    arc, z, phi, normal = _sampled(curve, 1.0)
+    sel = (arc >= 0.1 * s) & (arc <= 0.9 * s)
+    if sel.sum() < 8:
+        return None
+    step = 0.5
+    reach = SYMMETRY_HW * half_width
+    off = np.arange(-reach - half_width, reach + half_width + step / 2, step)
+    pts = z[sel, None] + normal[sel, None] * off[None, :]
+    prof = map_coordinates(image, [-pts.imag, pts.real], order=1, mode="nearest")
+    t = np.arange(0.0, reach + step / 2, step)
+    cands = np.arange(-half_width, half_width + 1e-9, 0.25)
+    rows = np.repeat(np.arange(prof.shape[0])[:, None], t.size, axis=1)
+    miss = np.empty((prof.shape[0], cands.size))
+    for j, c in enumerate(cands):
+        # (a profile's samples at c ± t, by their fractional index along it)
+        ahead = map_coordinates(prof, [rows, np.broadcast_to((c + t - off[0]) / step, rows.shape)],
+                                order=1)
+        behind = map_coordinates(prof, [rows, np.broadcast_to((c - t - off[0]) / step,
+                                                              rows.shape)], order=1)
+        miss[:, j] = np.mean((ahead - behind) ** 2, axis=1)
+    centres = z[sel] + normal[sel] * cands[np.argmin(miss, axis=1)]
+    xy = np.c_[centres.real, centres.imag]
+    xy = xy - xy.mean(axis=0)
+    _, sv, vt = np.linalg.svd(xy, full_matrices=False)
+    if sv[1] / np.sqrt(xy.shape[0]) > SYMMETRY_LINE_PX:
+        return None
+    d = complex(vt[0, 0], vt[0, 1])
+    # (pointing from the holder to the tube, as the fit does)
+    if (d * np.exp(-1j * np.mean(phi[sel]))).real < 0:
+        d = -d
+    return float(np.angle(d))
 
 
 def _profile_holder(ok: list[FrameTrack], image: np.ndarray, half_width: float,
@@ -566,7 +636,7 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
         return [r.moved(r.stage_shift - origin) for r in results], None
     arc, z, _, _ = _sampled(first, 0.25)
     end = complex(np.interp(s, arc, z.real), np.interp(s, arc, z.imag))
-    axis = holder_axis(first, s, half_width)
+    axis = holder_axis(first, s, half_width, first_frame())
     tol = max(2.0, 0.5 * half_width)
     tube = first.length - s
     out = []

@@ -381,3 +381,23 @@ def test_a_holder_s_end_is_its_steepest_fall_not_the_halo_s_tail():
     # the feature's fall does not reach half its level within a half-width
     amp = np.r_[np.full(15, 25.0), np.full(16, 15.0), [8.0], np.full(28, 1.0)]
     assert pipette._half_way(s, amp**2, 33, 10.0) == pytest.approx(31.0, abs=0.5)
+
+
+def test_a_bent_tube_s_holder_axis_is_its_line_of_symmetry():
+    # a holder twice the tube's width, along 180 deg; the fit through it leans
+    # 1.7 deg and wobbles (as through a capillary whose glass ends), and the
+    # tube past it bends: its axis from the holder's mirror-symmetric profiles
+    base = 400 - 240j
+    img = tube_image((480, 640), base, np.pi, 300.0, -3.0 / 300.0, HW, noise=0.01,
+                     pipette_half_width=2 * HW)
+    coef = np.r_[np.radians([0.0, 2.0, -2.0, 1.5, -1.0]), np.linspace(-0.5, -3.0, 7)]
+    through = Curve(base + 150 + 3j, np.pi + 0.03, 450.0, coef)
+    axis = pipette.holder_axis(through, 150.0, HW, img)
+    assert abs(np.angle(np.exp(1j * (axis - np.pi)))) < np.radians(0.2)
+    # (the fit's own mean direction through the holder)
+    assert abs(np.angle(np.exp(1j * (pipette.axis_angle(through, 150.0) - np.pi)))) > np.radians(1)
+    # no holder there (noise): the centres make no line, and the fit's own
+    # direction is kept
+    noise = np.random.default_rng(0).normal(0.5, 0.05, img.shape)
+    assert pipette.symmetric_axis(noise, through, 150.0, HW) is None
+    assert pipette.holder_axis(through, 150.0, HW, noise) == pipette.axis_angle(through, 150.0)
