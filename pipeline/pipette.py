@@ -133,9 +133,17 @@ AXIS_CLEAR_HW = 4.0
 #: half-widths either side are mirrored about their centres
 #: (:func:`symmetric_axis`: a capillary up to 4 times the tube's radius), ...
 SYMMETRY_HW = 5.0
-#: ... and the centres must lie on a line to this (RMS, px): the holders of
-#: an independent renderer, 0.01-0.2 px.
+#: ... their centres looked for within two half-widths of the fit (a fit may
+#: wander 12 px off a tapered capillary's axis); a profile's centre counts
+#: where its mirror misses by at most this share of its typical candidate's
+#: (a relief's profiles are antisymmetric), and not at the search's limit;
+#: at least this share of the profiles must count ...
+SYMMETRY_CONTRAST = 0.25
+SYMMETRY_KEEP = 0.6
+#: ... and their centres lie on a line to this (RMS, px: the holders of an
+#: independent renderer, 0.01-0.2 px), its direction known to this (deg).
 SYMMETRY_LINE_PX = 0.5
+SYMMETRY_SE_DEG = 0.2
 STRAIGHT_DEG = 2.0
 #: Status of a frame whose centreline does not pass where the holder ends.
 OFF_HOLDER = "lost: the tube's start not found at the holder's end"
@@ -290,9 +298,9 @@ def profile_change(image: np.ndarray, curve: Curve, half_width: float, upto: flo
     it is measured in units of the tube's own scatter about it, and the
     holder ends where that difference drops most sharply (by the ratio of its
     means over a half-width either side), from at least :data:`HOLDER_CHI2`
-    before; placed, to a fraction of a pixel, where it has fallen half-way
-    (:func:`_half_way`). Past it, the profiles must mostly match the far
-    tube's (:data:`TUBE_MATCH_CHI2`).
+    before; placed, to a fraction of a pixel, at the steepest fall of that
+    difference just before (:func:`_end_edge`). Past it, the profiles must
+    mostly match the far tube's (:data:`TUBE_MATCH_CHI2`).
 
     Parameters
     ----------
@@ -367,30 +375,32 @@ def profile_change(image: np.ndarray, curve: Curve, half_width: float, upto: flo
     if sse_trend < STEP_OVER_TREND * sse:
         return float(s[at]), 0.0
     last = prof[max(at - k_min, 0):at].mean(axis=0)
-    return _half_way(s, dev, at, half_width), float(np.mean((last - tube) ** 2) / scatter)
+    return _end_edge(s, dev, at, half_width), float(np.mean((last - tube) ** 2) / scatter)
 
 
-def _half_way(s: np.ndarray, dev: np.ndarray, at: int, half_width: float) -> float:
-    """Where, before profile ``at``, the profiles' difference from the tube's
-    falls most steeply (in amplitude: ``dev`` is squared): the blurred edge of
-    the holder's end. The first profile that matches the tube's lies out in
-    that edge's tail, 1-2 px past it, or further where the holder's end casts
-    a halo onto the tube (phase contrast: a tail 12 px long, its half-way
-    point 9 px past the glass's end)."""
+def _end_edge(s: np.ndarray, dev: np.ndarray, at: int, half_width: float) -> float:
+    """Where, before profile ``at`` (the first like the tube's), the profiles'
+    difference from the tube's falls most steeply (in amplitude: ``dev`` is
+    squared): the blurred edge of the holder's end. Profile ``at`` lies out
+    in that edge's tail, 1-2 px past it, or further where the holder's end
+    casts a halo onto the tube (phase contrast: a tail 12 px long, its
+    half-way point 9 px past the glass's end)."""
     amp = np.sqrt(np.maximum(dev, 0.0))
     w = max(int(round(half_width)), 3)
     lo = max(at - 2 * w, 1)
-    if at - lo < 3:
+    hi = min(at + 2, amp.size)
+    if hi - lo < 4:
         return float(s[at])
-    # (the drop between neighbouring profiles, 1 px apart: the steepest of
-    # those after which, within a half-width, the difference has fallen to
-    # half of what it was: a holder's end, not a feature along the holder
-    # (the end of a tube inside the glass: 25 -> 14 there, 13 -> 1.5 at the
-    # glass's end); placed to a fraction of a profile by a parabola through
-    # it and its neighbours)
-    drop = amp[lo - 1:at] - amp[lo:at + 1]
-    ends = np.array([amp[lo + i:lo + i + w + 1].min() <= 0.5 * amp[lo + i - 1]
-                     for i in range(drop.size)])
+    # (the drop between neighbouring profiles, 1 px apart, up to the one into
+    # ``at``: the steepest of those after which, within a half-width, the
+    # difference has fallen half-way to the tube's own level: a holder's end,
+    # not a feature along the holder (the end of a tube inside the glass:
+    # 25 -> 14 there, 13 -> 1.5 at the glass's end); placed to a fraction of
+    # a profile by a parabola through it and its neighbours)
+    drop = amp[lo - 1:hi - 1] - amp[lo:hi]
+    floor = float(np.median(amp[at:at + w])) if at < amp.size else 0.0
+    ends = np.array([amp[lo + i:lo + i + w + 1].min() - floor
+                     <= 0.5 * (amp[lo + i - 1] - floor) for i in range(drop.size)])
     ends[[0, -1]] = False
     if not ends.any():
         return float(s[at])
@@ -465,8 +475,8 @@ def symmetric_axis(image: np.ndarray, curve: Curve, s: float,
     :data:`SYMMETRY_HW` half-widths) are most nearly mirror images; a glass
     capillary, a band and the tube inside them are symmetric about it, and
     a fit through them may wander by several px (12 px inside a tapered
-    capillary). None where those centres do not lie on a line to
-    :data:`SYMMETRY_LINE_PX` (RMS), or the stretch is too short.
+    capillary). None where too few profiles show a centre, or their centres
+    do not lie on a line (:data:`SYMMETRY_LINE_PX`, :data:`SYMMETRY_SE_DEG`).
 
     Parameters
     ----------
@@ -480,30 +490,50 @@ def symmetric_axis(image: np.ndarray, curve: Curve, s: float,
         The tube's, px.
     """
     arc, z, phi, normal = _sampled(curve, 1.0)
-    sel = (arc >= 0.1 * s) & (arc <= 0.9 * s)
-    if sel.sum() < 8:
+    # (every other px along: the line needs no more)
+    sel = np.flatnonzero((arc >= 0.1 * s) & (arc <= 0.9 * s))[::2]
+    if sel.size < 8:
         return None
-    step = 0.5
+    step = 0.25
     reach = SYMMETRY_HW * half_width
-    off = np.arange(-reach - half_width, reach + half_width + step / 2, step)
+    wide = 2.0 * half_width                     # the centres looked for
+    off = np.arange(-reach - wide, reach + wide + step / 2, step)
     pts = z[sel, None] + normal[sel, None] * off[None, :]
-    prof = map_coordinates(image, [-pts.imag, pts.real], order=1, mode="nearest")
-    t = np.arange(0.0, reach + step / 2, step)
-    cands = np.arange(-half_width, half_width + 1e-9, 0.25)
-    rows = np.repeat(np.arange(prof.shape[0])[:, None], t.size, axis=1)
-    miss = np.empty((prof.shape[0], cands.size))
+    # (off the frame: no sample; a profile that leaves it is judged on the
+    # pairs it keeps)
+    prof = map_coordinates(image, [-pts.imag, pts.real], order=1, mode="constant",
+                           cval=np.nan)
+    k = np.arange(0, int(reach / step) + 1, 2)          # t = k·step, 0.5 px apart
+    centre = int(round(wide / step))
+    cands = np.arange(-centre, centre + 1) + int(round((reach + wide) / step))
+    miss = np.full((sel.size, cands.size), np.nan)
     for j, c in enumerate(cands):
-        # (a profile's samples at c ± t, by their fractional index along it)
-        ahead = map_coordinates(prof, [rows, np.broadcast_to((c + t - off[0]) / step, rows.shape)],
-                                order=1)
-        behind = map_coordinates(prof, [rows, np.broadcast_to((c - t - off[0]) / step,
-                                                              rows.shape)], order=1)
-        miss[:, j] = np.mean((ahead - behind) ** 2, axis=1)
-    centres = z[sel] + normal[sel] * cands[np.argmin(miss, axis=1)]
+        pair = (prof[:, c + k] - prof[:, c - k]) ** 2
+        enough = np.isfinite(pair).mean(axis=1) >= 0.5
+        with np.errstate(all="ignore"):
+            miss[enough, j] = np.nanmean(pair[enough], axis=1)
+    usable = np.isfinite(miss).any(axis=1)
+    best = np.full(sel.size, -1)
+    best[usable] = np.nanargmin(miss[usable], axis=1)
+    score = np.where(usable, miss[np.arange(sel.size), np.maximum(best, 0)], np.nan)
+    typical = np.full(sel.size, np.nan)
+    typical[usable] = np.nanmedian(miss[usable], axis=1)
+    # a centre at the search's limit is none (a fit further off, a profile not
+    # symmetric at all), nor one hardly better than the profile's typical
+    # mirror (a relief's antisymmetric profile)
+    keep = (usable & (best > 0) & (best < cands.size - 1)
+            & (score <= SYMMETRY_CONTRAST * typical))
+    if keep.sum() < max(8, SYMMETRY_KEEP * sel.size):
+        return None
+    centres = z[sel][keep] + normal[sel][keep] * (off[cands[best[keep]]])
     xy = np.c_[centres.real, centres.imag]
     xy = xy - xy.mean(axis=0)
     _, sv, vt = np.linalg.svd(xy, full_matrices=False)
-    if sv[1] / np.sqrt(xy.shape[0]) > SYMMETRY_LINE_PX:
+    rms = sv[1] / np.sqrt(xy.shape[0])
+    span = float(np.ptp(xy @ vt[0]))
+    # (the line's direction to SYMMETRY_SE_DEG: its slope's standard error)
+    if rms > SYMMETRY_LINE_PX or rms * np.sqrt(12.0 / xy.shape[0]) > np.radians(
+            SYMMETRY_SE_DEG) * max(span, 1e-9):
         return None
     d = complex(vt[0, 0], vt[0, 1])
     # (pointing from the holder to the tube, as the fit does)

@@ -367,20 +367,25 @@ def test_a_holder_is_cut_where_frames_restarted_along_it_leave_its_line(monkeypa
 
 def test_a_holder_s_end_is_its_steepest_fall_not_the_halo_s_tail():
     # the profiles' difference from the tube's along the first frame, 1 px
-    # apart: the holder at 16, its end a sharp fall at 30.5 to 10, then a
-    # halo's slow tail down to the tube's 2 by 42 (phase contrast); before it
-    # a feature along the holder (the tube's end inside the glass: 25 -> 16),
-    # and the first profile like the tube's at 44
+    # apart: the holder at 16, its end a sharp fall between 30 and 31 (to 10),
+    # then a halo's slow tail down to the tube's 2 by 42 (phase contrast),
+    # the first profile like the tube's at 44; and before it a feature along
+    # the holder (the tube's end inside the glass: 25 -> 16)
     s = np.arange(60.0)
     amp = np.full(s.size, 16.0)
     amp[:17] = 25.0
     amp[17:19] = [21.0, 17.0]
     amp[31:] = np.interp(s[31:], [31, 42], [10.0, 2.0])
-    assert pipette._half_way(s, amp**2, 44, 14.0) == pytest.approx(30.5, abs=0.5)
-    # a sharp end (no halo) with a steeper feature 1.5 half-widths before it:
-    # the feature's fall does not reach half its level within a half-width
+    # (the fall 16 -> 10 between its neighbours' 0 and 0.73: the parabola's
+    # vertex 0.03 of a profile past its middle)
+    assert pipette._end_edge(s, amp**2, 44, 14.0) == pytest.approx(30.53, abs=0.05)
+    # a sharp end (no halo), the fall into the first profile like the tube's,
+    # and a steeper feature 1.5 half-widths before it, whose fall does not
+    # reach half-way to the tube's level within a half-width
     amp = np.r_[np.full(15, 25.0), np.full(16, 15.0), [8.0], np.full(28, 1.0)]
-    assert pipette._half_way(s, amp**2, 33, 10.0) == pytest.approx(31.0, abs=0.5)
+    assert pipette._end_edge(s, amp**2, 32, 10.0) == pytest.approx(31.0, abs=0.05)
+    amp = np.r_[np.full(15, 25.0), np.full(17, 15.0), np.full(28, 1.0)]
+    assert pipette._end_edge(s, amp**2, 32, 10.0) == pytest.approx(31.5, abs=0.05)
 
 
 def test_a_bent_tube_s_holder_axis_is_its_line_of_symmetry():
@@ -396,6 +401,12 @@ def test_a_bent_tube_s_holder_axis_is_its_line_of_symmetry():
     assert abs(np.angle(np.exp(1j * (axis - np.pi)))) < np.radians(0.2)
     # (the fit's own mean direction through the holder)
     assert abs(np.angle(np.exp(1j * (pipette.axis_angle(through, 150.0) - np.pi)))) > np.radians(1)
+    # the other way round (0 deg: the holder on the left)
+    flipped = tube_image((480, 640), 240 - 240j, 0.0, 300.0, 3.0 / 300.0, HW, noise=0.01,
+                         pipette_half_width=2 * HW)
+    back = Curve(240 - 240j - 150 - 3j, -0.03, 450.0, -coef)
+    axis = pipette.holder_axis(back, 150.0, HW, flipped)
+    assert abs(np.angle(np.exp(1j * axis))) < np.radians(0.2)
     # no holder there (noise): the centres make no line, and the fit's own
     # direction is kept
     noise = np.random.default_rng(0).normal(0.5, 0.05, img.shape)
