@@ -610,8 +610,9 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
     results : list of FrameTrack
         The tracked frames, px of the first frame.
     first_frame : callable
-        Returns the first frame, (rows, cols) float ndarray: read only when a
-        long stretch from the base stood still while the rest of the tube bent.
+        Returns the first frame, (rows, cols) float ndarray: read only where
+        a holder is looked for along the profiles (a stretch from the base
+        stood still, or the frames bent) and to take a holder's axis.
     half_width : float
         The tube's half-width, px.
     px : float
