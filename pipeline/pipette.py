@@ -41,11 +41,13 @@ a pixel for a few widths, and the hinge fit then finds it at the tracked base.
 from __future__ import annotations
 
 from dataclasses import replace
+from functools import cache
 
 import numpy as np
 from scipy.ndimage import map_coordinates
 
 from .centreline import Curve, basis_of, evaluate, make_basis, resample
+from .profiles import sample_lines
 from .track import FrameTrack
 
 #: Frames bent at least this much (deg) tell the static stretch.
@@ -498,11 +500,9 @@ def symmetric_axis(image: np.ndarray, curve: Curve, s: float,
     reach = SYMMETRY_HW * half_width
     wide = 2.0 * half_width                     # the centres looked for
     off = np.arange(-reach - wide, reach + wide + step / 2, step)
-    pts = z[sel, None] + normal[sel, None] * off[None, :]
-    # (off the frame: no sample; a profile that leaves it is judged on the
-    # pairs it keeps)
-    prof = map_coordinates(image, [-pts.imag, pts.real], order=1, mode="constant",
-                           cval=np.nan)
+    # (off the frame: NaN; a profile that leaves it is judged on the pairs it
+    # keeps)
+    prof = sample_lines(image, z[sel], normal[sel], off)
     k = np.arange(0, int(reach / step) + 1, 2)          # t = k·step, 0.5 px apart
     centre = int(round(wide / step))
     cands = np.arange(-centre, centre + 1) + int(round((reach + wide) / step))
@@ -631,6 +631,7 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
     """
     if not results or not results[0].ok:
         return results, None
+    first_frame = cache(first_frame)      # (read once, where needed at all)
     least = MIN_WIDTHS * 2 * half_width
     origin = results[0].stage_shift
     results = on_first_stage(results)
