@@ -96,6 +96,10 @@ class Detection:
     bridged_px : float
         How much of :attr:`path` was not found but drawn straight from a
         given base to the tube found off it, px (0 if none).
+    held_at : tuple of complex, optional
+        Where a narrower stretch at one end of :attr:`path` and a wider
+        holder at its other end each step to the tube, px (y up): the base is
+        at one of them, and the video tells which (set only then).
     """
 
     path: np.ndarray
@@ -104,6 +108,7 @@ class Detection:
     half_width: float
     base_source: str
     bridged_px: float = 0.0
+    held_at: tuple[complex, complex] | None = None
 
     @property
     def found_length(self) -> float:
@@ -535,6 +540,94 @@ def _in_line(path_rc: np.ndarray, split: int, ratio: float, half_width: float) -
     return cos >= np.cos(np.radians(PIPETTE_IN_LINE_DEG))
 
 
+def _holder_beyond(width: np.ndarray, split: int, ratio: float, trim: int,
+                   min_pipette: float) -> int | None:
+    """Where (an index of ``width``), past the tube that a narrower stretch
+    of ``width`` ends at ``split`` (``ratio`` after over before), the width
+    steps up by :data:`HOLDER_BEYOND_RATIO` or more to the path's other end:
+    a wider holder there; None where it does not."""
+    if 1 / 1.15 <= ratio <= 1.15 or split == 0:
+        return None
+    tube = width[split:] if ratio > 1.0 else width[:split][::-1]
+    step, step_ratio = _split_point(tube, trim)
+    if not (step and step_ratio >= HOLDER_BEYOND_RATIO and tube.size - step > min_pipette):
+        return None
+    return split + step if ratio > 1.0 else split - step
+
+
+#: ... its width over the tube's there, at least: past a tube's own sections'
+#: 25 % (a capillary's width, 1.6x the tube's, measured with its thinner rims
+#: at the border: 1.37x).
+HOLDER_BEYOND_RATIO = 1.3
+
+
+def held_between(det: Detection, base: complex) -> Detection:
+    """``det`` (a detection with :attr:`Detection.held_at`) cut to the tube
+    between its two steps, from the one at ``base`` (px, y up: where the
+    video told the tube is held) to the other (where a thinner structure
+    touches its tip)."""
+    i, j = (int(np.argmin(np.abs(det.path - z))) for z in det.held_at)
+    if abs(det.path[j] - base) < abs(det.path[i] - base):
+        i, j = j, i
+    pts = det.path[i:j + 1] if i < j else det.path[j:i + 1][::-1]
+    if pts.size < 4:
+        return det
+    lead = pts[min(pts.size - 1, max(2, int(3 * det.half_width)))] - pts[0]
+    return Detection(pts, complex(pts[0]), float(np.angle(lead)), det.half_width,
+                     "where the tube leaves the holder that stood still (told by the video: a "
+                     "thinner structure touched its tip, in line, on the first frame)")
+
+
+#: The longest path turning by more than this (deg) where it steps down by
+#: :data:`HOLDER_RATIO` or more in width, from a stretch at least
+#: :data:`CROSSING_WIDE_HW` of its own half-widths long, has turned off the
+#: tube into a thinner structure crossing it (a dust fibre): the tube runs on
+#: through a crossing, and a holder holds a tube along its own line. Directions
+#: are chords over four half-widths each side, from 1.5 of the wider
+#: structure's half-widths off the step: the skeleton kinks where a wall meets
+#: the tube (an independent-renderer fibre, 4 px wide, across a transparent
+#: tube 19 px wide: the path ran along the tube and turned 80 deg down the
+#: fibre, which was then tracked as the tube, held by "a holder").
+CROSSING_TURN_DEG = 60.0
+CROSSING_WIDE_HW = 8.0
+#: Thinner branches cut away at most, one after another.
+CROSSINGS_MAX = 3
+
+
+def _crossing_branch(path_rc: np.ndarray, width: np.ndarray) -> np.ndarray | None:
+    """The pixels of ``path_rc`` (working px, (row, col)) to cut from the
+    skeleton where the path turns off a wider structure into a thinner one
+    crossing it (see :data:`CROSSING_TURN_DEG`), or None where it does not.
+
+    Those are the thinner stretch's from a wider half-width and a pixel past
+    the step on: the junction stays, for the path to run on through it."""
+    split, ratio = _split_point(width, int(round(np.median(width) / 2)))
+    if split == 0 or 1 / HOLDER_RATIO <= ratio <= HOLDER_RATIO:
+        return None
+    wide_first = ratio < 1.0
+    wide = width[:split] if wide_first else width[split:]
+    thin = width[split:] if wide_first else width[:split]
+    hw_wide, hw_thin = float(np.median(wide)) / 2, float(np.median(thin)) / 2
+    if wide.size < CROSSING_WIDE_HW * hw_wide:
+        return None
+    skip = int(round(1.5 * hw_wide))
+    reach_wide, reach_thin = int(max(3, round(4 * hw_wide))), int(max(3, round(4 * hw_thin)))
+    step = 1 if wide_first else -1
+    # (index runs away from the step on each side)
+    wide_ix = split - step * np.array([skip + reach_wide, skip]) - (0 if wide_first else 1)
+    thin_ix = split + step * np.array([skip, skip + reach_thin]) - (0 if wide_first else 1)
+    if (wide_ix.min() < 0 or wide_ix.max() >= len(path_rc) or thin_ix.min() < 0
+            or thin_ix.max() >= len(path_rc)):
+        return None
+    before = path_rc[wide_ix[1]] - path_rc[wide_ix[0]]
+    after = path_rc[thin_ix[1]] - path_rc[thin_ix[0]]
+    cos = float(before @ after) / max(float(np.hypot(*before) * np.hypot(*after)), 1e-12)
+    if cos >= np.cos(np.radians(CROSSING_TURN_DEG)):
+        return None
+    cut = int(round(hw_wide)) + 1
+    return path_rc[split + cut:] if wide_first else path_rc[:max(split - cut, 0)]
+
+
 def _split_point(width: np.ndarray, trim: int = 0) -> tuple[int, float]:
     """Best single step of a piecewise-constant fit to ``width``: (index, ratio after/before).
 
@@ -678,10 +771,18 @@ def _detect_in(mask: np.ndarray, f: int, base_hint, base_end, *,
     dist = ndi.distance_transform_edt(filled)
     skel = _skeleton(filled)
     radius = float(np.median(dist[skel])) if skel.any() else 0.0
-    path_rc = longest_path(skel, border_bonus=2.0 * radius, margin=2.0 + radius)
-    if path_rc.shape[0] < 5:
-        return None
-    width = 2 * dist[path_rc[:, 0], path_rc[:, 1]]
+    for _ in range(CROSSINGS_MAX + 1):
+        path_rc = longest_path(skel, border_bonus=2.0 * radius, margin=2.0 + radius)
+        if path_rc.shape[0] < 5:
+            return None
+        width = 2 * dist[path_rc[:, 0], path_rc[:, 1]]
+        crossing = _crossing_branch(path_rc, width)
+        if crossing is None:
+            break
+        # the path turned off the tube into a thinner structure crossing it:
+        # that branch is cut away and the longest path looked for again
+        skel = skel.copy()
+        skel[crossing[:, 0], crossing[:, 1]] = False
     half_width = float(np.median(width)) / 2
     if path_rc.shape[0] * 1.0 < 3 * half_width:
         return None  # a blob, not a tube
@@ -696,6 +797,7 @@ def _detect_in(mask: np.ndarray, f: int, base_hint, base_end, *,
     # orient base → tip
     orient = base_hint if base_hint is not None else base_end
     ambiguous = False
+    held_rc = None
     if orient is not None:
         hint = np.array([orient[1], orient[0]], dtype=float) / f
         d_first = np.hypot(*(path_rc[0] - hint))
@@ -703,8 +805,9 @@ def _detect_in(mask: np.ndarray, f: int, base_hint, base_end, *,
         if d_last < d_first:
             path_rc, width = path_rc[::-1], width[::-1]
     else:
-        first_b = _touches_border(path_rc[0], shape, margin)
-        last_b = _touches_border(path_rc[-1], shape, margin)
+        # (a wider holder's skeleton stops its own radius short of the border)
+        first_b = _touches_border(path_rc[0], shape, max(margin, 2.0 + width[0] / 2))
+        last_b = _touches_border(path_rc[-1], shape, max(margin, 2.0 + width[-1] / 2))
         if last_b and not first_b:
             path_rc, width = path_rc[::-1], width[::-1]
         elif first_b == last_b:
@@ -715,10 +818,16 @@ def _detect_in(mask: np.ndarray, f: int, base_hint, base_end, *,
             # end nearer the border, for the motion test to confirm.
             split, ratio = _split_point(width, trim)
             in_line = _in_line(path_rc, split, ratio, half_width)
+            # (a wider holder at the other end: the narrower stretch may be a
+            # fibre or a scratch the tube's tip touches, in line with it)
+            far = _holder_beyond(width, split, ratio, trim, min_pipette)
+            if far is not None:
+                held_rc = path_rc[[split, far]]
             if (first_b and ratio < 1 / 1.15 and width.size - split > min_pipette
-                    and in_line):
+                    and in_line and held_rc is None):
                 path_rc, width = path_rc[::-1], width[::-1]
-            elif not (first_b and ratio > 1.15 and split > min_pipette and in_line):
+            elif not (first_b and ratio > 1.15 and split > min_pipette and in_line
+                      and held_rc is None):
                 ambiguous = True
                 if border_distance(path_rc[-1], shape) < border_distance(path_rc[0], shape):
                     path_rc, width = path_rc[::-1], width[::-1]
@@ -728,6 +837,10 @@ def _detect_in(mask: np.ndarray, f: int, base_hint, base_end, *,
         hint = np.array([base_hint[1], base_hint[0]], dtype=float) / f
         split = int(np.argmin(np.hypot(*(path_rc - hint).T)))
         source = "given (--base)"
+    elif held_rc is not None:
+        # a narrower stretch at one end, a wider holder at the other: the video tells
+        split = 0
+        source = AMBIGUOUS_BASE
     elif (ratio > 1.15 and split > min_pipette and _touches_border(path_rc[0], shape, margin)
           and _in_line(path_rc, split, ratio, half_width)):
         source = PIPETTE_STEP
@@ -783,4 +896,7 @@ def _detect_in(mask: np.ndarray, f: int, base_hint, base_end, *,
         elif abs(gap) > 2.0 * half_width_px:
             source = (f"{source}; it lies {abs(gap):.0f} px from the tube found, off its line: "
                       "the base taken at the tube's nearest point")
-    return Detection(pts, complex(pts[0]), base_angle, half_width_px, source, bridged)
+    held_at = None if held_rc is None else tuple(
+        complex(z) for z in from_image(held_rc[:, 1] * f + (f - 1) / 2,
+                                       held_rc[:, 0] * f + (f - 1) / 2))
+    return Detection(pts, complex(pts[0]), base_angle, half_width_px, source, bridged, held_at)

@@ -36,7 +36,7 @@ from .refine import (
     end_step_left_out,
     strip_half_px,
 )
-from .segment import AMBIGUOUS_BASE, detect
+from .segment import AMBIGUOUS_BASE, detect, held_between
 from .static_mask import MARGIN_PX, static_mask
 from .track import (
     EDGE_SCALES,
@@ -555,23 +555,34 @@ def _static_end(reader, det):
     ``det`` is the first frame's detection. Returns ``(base_end, note,
     detection)``: a point near the base end (col, row) or None, a line for the
     run's notes (None when the test was not needed), and the first frame's
-    detection when it stands as it is.
+    detection when it stands as it is, or cut to the tube between its two
+    holders' steps (:attr:`pipeline.segment.Detection.held_at`), from the one
+    told.
     """
     from .motion import end_motion
 
     if det is None or det.base_source != AMBIGUOUS_BASE:
         return None, None, det
-    ends = det.path[[0, -1]]
-    motion = end_motion(iter(reader), np.c_[-det.path.imag, det.path.real], det.half_width)
+    if det.held_at is not None:
+        # the base is where one of the two structures at the path's ends holds
+        # the tube: the motion is compared there, not at the path's own ends
+        # (both of which may stand still, in the holder and in a fibre)
+        tube = held_between(det, det.held_at[0])
+        ends = tube.path[[0, -1]]
+        seen = "a narrower stretch at one end and a wider holder at the other"
+    else:
+        tube, ends, seen = det, det.path[[0, -1]], "no pipette or border seen"
+    motion = end_motion(iter(reader), np.c_[-tube.path.imag, tube.path.real], det.half_width)
     if not motion.decided:
-        return None, (f"base end ambiguous (no pipette or border seen, and both ends moved "
+        return None, (f"base end ambiguous ({seen}, and both ends moved "
                       f"alike over {motion.frames} frames): took the end nearer the border; "
                       "give --base X,Y if it is wrong"), det
     end = ends[1] if motion.base_is_last else ends[0]
     return (end.real, -end.imag), (
-        f"base end chosen by motion: no pipette or border seen, and the other end moved "
+        f"base end chosen by motion: {seen}, and the other end moved "
         f"{max(motion.first, motion.last) / max(min(motion.first, motion.last), 1.0):.0f}x "
-        f"more over the first {motion.frames} frames"), None
+        f"more over the first {motion.frames} frames"), (
+            None if det.held_at is None else held_between(det, end))
 
 
 def _notes(results, stages, base_given: bool, rate) -> list[str]:
