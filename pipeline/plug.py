@@ -54,20 +54,23 @@ def plug_length(results: list[FrameTrack], half_width: float) -> float | None:
     ----------
     results : list of FrameTrack
         The tracked frames: the stretch told (:attr:`FrameTrack.end_step`),
-        and its offsets measured until then (:attr:`FrameTrack.end_steps`).
+        and its offsets measured until then (:attr:`FrameTrack.end_steps`)
+        and after (:attr:`FrameTrack.told_offset`).
     half_width : float
         The tube's half-width the end's stretches were measured in, px.
     """
     told = [r.end_step for r in results if r.ok and r.end_step is not None]
-    # (measured on the frames until the stretch was told; not where the tube
-    # crossed itself, as the votes did not)
-    seen = [r for r in results if r.ok and r.end_steps is not None and not r.crossing]
-    if not told or len(seen) < MIN_FRAMES or half_width <= 0:
+    # (not where the tube crossed itself, as the votes did not)
+    seen = [r for r in results if r.ok and not r.crossing]
+    if not told or half_width <= 0:
         return None
     px = told[0][0]
     zone = int(np.argmin(np.abs(np.asarray(END_STEP_ZONES_HW) * half_width - px)))
     bend = np.array([r.bend_angle_rad for r in seen])
-    offset = np.array([r.end_steps[zone, 0] for r in seen])
+    # measured among the stretches until the stretch was told, and as itself
+    # after: every frame bent further adds to what tells a plug from a lumen
+    offset = np.array([r.end_steps[zone, 0] if r.end_steps is not None else r.told_offset
+                       for r in seen])
     return float(PLUG_PER_STRETCH * px) if grows_with_bend(bend, offset) else None
 
 

@@ -408,6 +408,11 @@ class Refined:
         the weight of the profiles it is the mean of, and its standard error
         from the edges' residual variance, px; measured while
         :attr:`TubeLook.end_step_in_question`.
+    told_offset : float
+        Once the stretch at the end is told (:attr:`TubeLook.end_step_px`),
+        the mean offset of its edge midpoints from the curve fitted, px
+        (along the left normal; NaN where not told or no valid profile lies
+        there): what :attr:`end_steps` measured before, on every frame after.
     """
 
     curve: Curve
@@ -428,6 +433,7 @@ class Refined:
     in_view: np.ndarray | None = None
     last_move_px: float = 0.0
     length_held: bool = False
+    told_offset: float = float("nan")
 
     @property
     def valid_fraction(self) -> float:
@@ -590,6 +596,7 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
     n_extra = 2 if free_base else 0
     n_par = k + 1 + n_extra
     end_steps = None
+    told_offset = np.nan
     min_strength = 0.25 * look.strength
     stiff_px = max(TIP_STIFF_WIDTHS * 2 * hw, TIP_STIFF_MIN_PX)
     tip_rows = basis.quad_second[basis.quad_u > 1.0 - stiff_px / curve.length]
@@ -724,6 +731,9 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
             if look.end_in_question:
                 end_offset = _end_offset(a_mat, b_vec, weights, lhs, rhs, damp,
                                          from_end < END_CLEAR_HW * hw)
+            if look.end_step_px:
+                told_offset = _told_offset(rows, delta, weights, zone, a_mat, b_vec,
+                                           lhs + np.diag(damp), rhs)
             if look.end_step_in_question:
                 end_steps = np.array([
                     (_end_offset(a_mat, b_vec, weights, lhs, rhs, damp, near),
@@ -777,7 +787,7 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
                & (-at.imag >= reach) & (-at.imag <= image.shape[0] - 1 - reach))
     return Refined(curve, u, width, edges.valid, rms, tip_found, it, strength, ~dropped, mids,
                    tip_correction, noise, last_section, end_offset, end_steps, in_view=in_view,
-                   last_move_px=float(move))
+                   last_move_px=float(move), told_offset=told_offset)
 
 
 def end_step_left_out(curve: Curve, step_px: float, offset_px: float) -> bool:
@@ -806,6 +816,23 @@ def _own_offset(a_w, b_w, weights, zone):
     a_w[zone] -= np.outer(weights[zone], (w @ a_w) / total)
     b_w[zone] -= weights[zone] * ((w @ b_w) / total)
     return a_w, b_w
+
+
+def _told_offset(rows, delta, weights, zone, a_mat, b_vec, system, rhs) -> float:
+    """The weighted mean offset of the edge midpoints in ``zone`` (the told
+    stretch at the end, which the fit left out or gave an offset of its own)
+    from the curve that the other profiles alone fit, px (along the left
+    normal); NaN where no valid profile lies there. ``rows``, ``delta``:
+    the profiles' rows and offsets before weighting; ``a_mat``, ``b_vec``:
+    the rows as fitted (the profiles' first); ``system``, ``rhs``: the
+    normal equations solved, damping and penalties in."""
+    near = zone & (weights > 0)
+    if not near.any():
+        return np.nan
+    used = np.flatnonzero(zone)
+    a_e, b_e = a_mat[used], b_vec[used]
+    x = np.linalg.solve(system - a_e.T @ a_e, rhs - a_e.T @ b_e)
+    return float(np.sum(weights[near] * (delta[near] - rows[near] @ x)) / np.sum(weights[near]))
 
 
 def _end_offset(a_mat, b_vec, weights, lhs, rhs, damp, near_end) -> float:

@@ -410,6 +410,8 @@ class FrameTrack:
         (:attr:`pipeline.refine.TubeLook.clears_end`).
     end_steps : (Z, 3) ndarray, optional
         :attr:`pipeline.refine.Refined.end_steps` of the fit.
+    told_offset : float
+        :attr:`pipeline.refine.Refined.told_offset` of the fit, px.
     end_step : (float, float), optional
         The stretch at the tube's end told to step sideways, px (its side
         edges left out of the fit, or given an offset of their own), and how
@@ -448,6 +450,7 @@ class FrameTrack:
     end_steps: np.ndarray | None = None
     end_step: tuple[float, float] | None = None
     plug_px: float | None = None
+    told_offset: float = float("nan")
     stage_shift: complex = 0j
 
     def moved(self, step: complex) -> FrameTrack:
@@ -1482,7 +1485,8 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
                            polarity=look.polarity,
                            fit=r.curve if status == "ok" else None,
                            last_section=r.last_section if status == "ok" else None,
-                           end_offset=r.end_offset, end_steps=r.end_steps), look)
+                           end_offset=r.end_offset, end_steps=r.end_steps,
+                           told_offset=r.told_offset), look)
     hw = look.mean_half_width
     pred = _predict(history)
     last_length = history[-1].length
@@ -1630,7 +1634,8 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
                           r.residual_px, r.valid_fraction, work, crossing=crossing)
     return FrameTrack(index, "ok", _reported(r), stage, r.residual_px, r.valid_fraction, work,
                       crossing=crossing, fit=r.curve, last_section=r.last_section,
-                      end_offset=r.end_offset, end_steps=r.end_steps)
+                      end_offset=r.end_offset, end_steps=r.end_steps,
+                      told_offset=r.told_offset)
 
 
 def _reported(r: Refined) -> Curve:

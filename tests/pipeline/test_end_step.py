@@ -64,6 +64,27 @@ def test_the_end_steps_are_how_far_the_ends_midpoints_sit_off_the_rests_line(shi
     assert refine(1.0 - _stepped_tube(shift), _truth(), bright, iterations=2).end_steps is not None
 
 
+@pytest.mark.parametrize("shift", [0.0, 0.3, -0.3])
+@pytest.mark.parametrize("own", [False, True])
+def test_once_told_the_stretch_s_offset_is_still_measured(shift, own):
+    """Once told, the stretch's side edges are left out of the fit (or given
+    an offset of their own, ``own``): how far their midpoints sit off the
+    rest's line is still measured (``told_offset``), for the plug test to
+    see every frame's, as :attr:`Refined.end_steps` measured it over the
+    same stretch before (two thirds of the step: the rest's line is pulled
+    by the profile straddling it); not before it is told, nor where it was
+    told none."""
+    look = replace(_look(STEP_PX), end_step_offset=1.0 if own else 0.0)
+    assert end_step_left_out(_truth(), STEP_PX, look.end_step_offset) != own
+    r = refine(_stepped_tube(shift), _truth(), look, iterations=8, tol_px=0.005)
+    zone = int(np.argmin(np.abs(np.asarray(END_STEP_ZONES_HW) * HW - STEP_PX)))
+    before = refine(_stepped_tube(shift), _truth(), _look(None), iterations=8, tol_px=0.005)
+    assert r.told_offset == pytest.approx(before.end_steps[zone, 0], abs=0.01)
+    assert r.told_offset == pytest.approx(0.67 * shift, abs=0.03)
+    assert np.isnan(refine(_stepped_tube(shift), _truth(), _look(None), iterations=2).told_offset)
+    assert np.isnan(refine(_stepped_tube(shift), _truth(), _look(0.0), iterations=2).told_offset)
+
+
 @pytest.mark.parametrize(("polarity", "grows", "told"), [
     (-1, False, True), (1, False, False), (1, True, True), (-1, True, True)])
 def test_a_bright_tube_s_end_is_told_only_where_it_grows_with_the_bend(polarity, grows, told):

@@ -48,6 +48,22 @@ def test_a_plug_is_an_offset_in_proportion_to_the_bend(offsets, told):
         assert length == pytest.approx(16.0 * plug.PLUG_PER_STRETCH)
 
 
+@pytest.mark.parametrize(("offsets", "told"), [
+    (-0.15 * np.radians(BENDS), True),
+    (np.full(10, 0.2), False),
+])
+def test_the_offsets_measured_after_the_stretch_was_told_count(offsets, told):
+    """A stretch told on the first frames, when few and little bent: the
+    offsets measured as itself after (``told_offset``) tell the plug."""
+    results = _frames(BENDS[:3], offsets[:3])
+    for k, (bend, off) in enumerate(zip(BENDS[3:], offsets[3:], strict=True)):
+        curve = Curve(0j, 0.0, 300.0, np.linspace(0.0, np.radians(bend), 8))
+        results.append(FrameTrack(k + 3, "ok", curve, "fast", end_step=(16.0, 0.2),
+                                  told_offset=float(off)))
+    assert (plug.plug_length(results, HW) is not None) == told
+    assert plug.plug_length(results[:3], HW) is None
+
+
 def test_too_few_or_too_little_bent_frames_tell_no_plug():
     assert plug.plug_length(_frames(BENDS[:4], -0.15 * np.radians(BENDS[:4])), HW) is None
     small = np.linspace(0.0, -30.0, 10)
