@@ -89,6 +89,8 @@ class Binning:
                        fit=self.curve_back(track.fit), residual_px=d * track.residual_px,
                        half_width_px=d * track.half_width_px,
                        end_offset=d * track.end_offset, told_offset=d * track.told_offset,
+                       end_profile=(None if track.end_profile is None
+                                    else track.end_profile * np.array([d, d, 1.0])),
                        end_steps=(None if track.end_steps is None
                                   else track.end_steps * np.array([d, 1.0, d])),
                        end_step=(None if track.end_step is None

@@ -48,6 +48,11 @@ STRIP_STEP_PX = 1.0
 #: A sealed tube's plug, where the lumen that pulls the body's midpoints off
 #: its axis has ended, is 1.3-1.7 half-widths long behind a round cap.
 END_STEP_ZONES_HW = tuple(np.arange(0.5, 3.01, 0.25))
+#: Once a stretch is told, the edge midpoints over this many half-widths at
+#: the end are measured off the curve the rest alone fits
+#: (:attr:`Refined.end_profile`): a plug up to about 5 half-widths long is
+#: fitted to them.
+END_PROFILE_HW = 6.0
 #: A told stretch's side edges are left out of the fits where it is at most
 #: this share of the last section (the whole tube, without joints): the tip's
 #: direction is then the continuation of an arc at least three times as long.
@@ -413,6 +418,13 @@ class Refined:
         the mean offset of its edge midpoints from the curve fitted, px
         (along the left normal; NaN where not told or no valid profile lies
         there): what :attr:`end_steps` measured before, on every frame after.
+    end_profile : (M, 3) ndarray, optional
+        Once the stretch is told: the valid profiles within
+        :data:`END_PROFILE_HW` half-widths of the end, each's distance from
+        it, its edge midpoints' offset from the curve that the profiles
+        farther off alone fit (px, along the left normal) and its weight;
+        what a straight plug's length is fitted to
+        (:func:`pipeline.plug.plug_length`).
     """
 
     curve: Curve
@@ -434,6 +446,7 @@ class Refined:
     last_move_px: float = 0.0
     length_held: bool = False
     told_offset: float = float("nan")
+    end_profile: np.ndarray | None = None
 
     @property
     def valid_fraction(self) -> float:
@@ -597,6 +610,7 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
     n_par = k + 1 + n_extra
     end_steps = None
     told_offset = np.nan
+    end_profile = None
     min_strength = 0.25 * look.strength
     stiff_px = max(TIP_STIFF_WIDTHS * 2 * hw, TIP_STIFF_MIN_PX)
     tip_rows = basis.quad_second[basis.quad_u > 1.0 - stiff_px / curve.length]
@@ -734,6 +748,9 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
             if look.end_step_px:
                 told_offset = _told_offset(rows, delta, weights, zone, a_mat, b_vec,
                                            lhs + np.diag(damp), rhs)
+                end_profile = _end_profile(rows, delta, weights, from_end,
+                                           END_PROFILE_HW * hw, a_mat, b_vec,
+                                           lhs + np.diag(damp), rhs)
             if look.end_step_in_question:
                 end_steps = np.array([
                     (_end_offset(a_mat, b_vec, weights, lhs, rhs, damp, near),
@@ -787,7 +804,7 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
                & (-at.imag >= reach) & (-at.imag <= image.shape[0] - 1 - reach))
     return Refined(curve, u, width, edges.valid, rms, tip_found, it, strength, ~dropped, mids,
                    tip_correction, noise, last_section, end_offset, end_steps, in_view=in_view,
-                   last_move_px=float(move), told_offset=told_offset)
+                   last_move_px=float(move), told_offset=told_offset, end_profile=end_profile)
 
 
 def end_step_left_out(curve: Curve, step_px: float, offset_px: float) -> bool:
@@ -818,21 +835,42 @@ def _own_offset(a_w, b_w, weights, zone):
     return a_w, b_w
 
 
-def _told_offset(rows, delta, weights, zone, a_mat, b_vec, system, rhs) -> float:
-    """The weighted mean offset of the edge midpoints in ``zone`` (the told
-    stretch at the end, which the fit left out or gave an offset of its own)
-    from the curve that the other profiles alone fit, px (along the left
-    normal); NaN where no valid profile lies there. ``rows``, ``delta``:
-    the profiles' rows and offsets before weighting; ``a_mat``, ``b_vec``:
-    the rows as fitted (the profiles' first); ``system``, ``rhs``: the
-    normal equations solved, damping and penalties in."""
-    near = zone & (weights > 0)
-    if not near.any():
-        return np.nan
+def _off_rest(rows, delta, zone, a_mat, b_vec, system, rhs) -> np.ndarray:
+    """Each profile's edge midpoint offset from the curve that the profiles
+    outside ``zone`` alone fit, px (along the left normal). ``rows``,
+    ``delta``: the profiles' rows and offsets before weighting; ``a_mat``,
+    ``b_vec``: the rows as fitted (the profiles' first); ``system``, ``rhs``:
+    the normal equations solved, damping and penalties in."""
     used = np.flatnonzero(zone)
     a_e, b_e = a_mat[used], b_vec[used]
     x = np.linalg.solve(system - a_e.T @ a_e, rhs - a_e.T @ b_e)
-    return float(np.sum(weights[near] * (delta[near] - rows[near] @ x)) / np.sum(weights[near]))
+    return delta - rows @ x
+
+
+def _told_offset(rows, delta, weights, zone, a_mat, b_vec, system, rhs) -> float:
+    """The weighted mean offset of the edge midpoints in ``zone`` (the told
+    stretch at the end, which the fit left out or gave an offset of its own)
+    from the curve that the other profiles alone fit (:func:`_off_rest`), px;
+    NaN where no valid profile lies there."""
+    near = zone & (weights > 0)
+    if not near.any():
+        return np.nan
+    off = _off_rest(rows, delta, zone, a_mat, b_vec, system, rhs)
+    return float(np.sum(weights[near] * off[near]) / np.sum(weights[near]))
+
+
+def _end_profile(rows, delta, weights, from_end, reach_px, a_mat, b_vec, system,
+                 rhs) -> np.ndarray | None:
+    """The valid profiles within ``reach_px`` of the end: their distance from
+    it (px), their edge midpoints' offset from the curve the profiles farther
+    off alone fit (:func:`_off_rest`, px) and their weight, as rows; None
+    where none is valid."""
+    zone = from_end < reach_px
+    near = zone & (weights > 0)
+    if not near.any():
+        return None
+    off = _off_rest(rows, delta, zone, a_mat, b_vec, system, rhs)
+    return np.c_[from_end[near], off[near], weights[near]]
 
 
 def _end_offset(a_mat, b_vec, weights, lhs, rhs, damp, near_end) -> float:

@@ -412,6 +412,8 @@ class FrameTrack:
         :attr:`pipeline.refine.Refined.end_steps` of the fit.
     told_offset : float
         :attr:`pipeline.refine.Refined.told_offset` of the fit, px.
+    end_profile : (M, 3) ndarray, optional
+        :attr:`pipeline.refine.Refined.end_profile` of the fit.
     end_step : (float, float), optional
         The stretch at the tube's end told to step sideways, px (its side
         edges left out of the fit, or given an offset of their own), and how
@@ -451,6 +453,7 @@ class FrameTrack:
     end_step: tuple[float, float] | None = None
     plug_px: float | None = None
     told_offset: float = float("nan")
+    end_profile: np.ndarray | None = None
     stage_shift: complex = 0j
 
     def moved(self, step: complex) -> FrameTrack:
@@ -1486,7 +1489,7 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
                            fit=r.curve if status == "ok" else None,
                            last_section=r.last_section if status == "ok" else None,
                            end_offset=r.end_offset, end_steps=r.end_steps,
-                           told_offset=r.told_offset), look)
+                           told_offset=r.told_offset, end_profile=r.end_profile), look)
     hw = look.mean_half_width
     pred = _predict(history)
     last_length = history[-1].length
@@ -1635,7 +1638,7 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
     return FrameTrack(index, "ok", _reported(r), stage, r.residual_px, r.valid_fraction, work,
                       crossing=crossing, fit=r.curve, last_section=r.last_section,
                       end_offset=r.end_offset, end_steps=r.end_steps,
-                      told_offset=r.told_offset)
+                      told_offset=r.told_offset, end_profile=r.end_profile)
 
 
 def _reported(r: Refined) -> Curve:

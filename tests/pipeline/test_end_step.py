@@ -8,6 +8,7 @@ import pytest
 
 from pipeline.centreline import fit_to_polyline
 from pipeline.refine import (
+    END_PROFILE_HW,
     END_STEP_ZONES_HW,
     TubeLook,
     _own_offset,
@@ -81,6 +82,13 @@ def test_once_told_the_stretch_s_offset_is_still_measured(shift, own):
     before = refine(_stepped_tube(shift), _truth(), _look(None), iterations=8, tol_px=0.005)
     assert r.told_offset == pytest.approx(before.end_steps[zone, 0], abs=0.01)
     assert r.told_offset == pytest.approx(0.67 * shift, abs=0.03)
+    # and each profile's near the end, off the curve the farther ones fit:
+    # the step's whole, nothing past it (the one straddling it between)
+    d, off, _ = r.end_profile.T
+    assert d.max() < END_PROFILE_HW * HW
+    assert np.allclose(off[d < STEP_PX - 1], shift, atol=0.02)
+    assert np.allclose(off[d > STEP_PX + 1], 0.0, atol=0.03)
+    assert refine(_stepped_tube(shift), _truth(), _look(None), iterations=2).end_profile is None
     assert np.isnan(refine(_stepped_tube(shift), _truth(), _look(None), iterations=2).told_offset)
     assert np.isnan(refine(_stepped_tube(shift), _truth(), _look(0.0), iterations=2).told_offset)
 

@@ -8,10 +8,11 @@ from scipy.spatial import cKDTree
 from scipy.special import erf
 
 from pipeline import pipette, plug
-from pipeline.centreline import Curve, resample, tip_point
-from pipeline.refine import END_STEP_ZONES_HW
+from pipeline.centreline import Curve, fit_to_polyline, resample, tip_point
+from pipeline.refine import END_PROFILE_HW, END_STEP_ZONES_HW
 from pipeline.track import FrameTrack
 from pipeline.tracks import track_video
+from tests.pipeline.synthetic import arc_axis
 
 HW = 8.0
 
@@ -62,6 +63,42 @@ def test_the_offsets_measured_after_the_stretch_was_told_count(offsets, told):
                                   told_offset=float(off)))
     assert (plug.plug_length(results, HW) is not None) == told
     assert plug.plug_length(results[:3], HW) is None
+
+
+def _profiled(plug_px, bends_deg, rng, *, section=0.0):
+    """FrameTracks of a 300 px tube at constant curvature, whose edge
+    midpoints near the end sit off the arc as a straight plug ``plug_px``
+    long puts them, plus a last section's curvature step ``section`` (times
+    the bend's curvature) over the profiles' reach, a face's pull on the
+    nearest and noise."""
+    reach = END_PROFILE_HW * HW
+    d = np.arange(1.0, reach, 1.5)
+    out = []
+    for k, bend in enumerate(np.radians(bends_deg)):
+        kappa = bend / 300.0
+        curve = fit_to_polyline(arc_axis(0j, 0.0, 300.0, kappa)[0], 0.0, n_coef=12)
+        off = (-kappa * np.clip(plug_px - d, 0, None) ** 2 / 2
+               + section * kappa * (reach - d) ** 2 / 2
+               + np.where(d < 0.4 * HW, 0.5, 0.0) + rng.normal(0, 0.03, d.size))
+        out.append(FrameTrack(k, "ok", curve, "fast", end_step=(0.6 * plug_px, 0.2),
+                              end_profile=np.c_[d, off, np.ones(d.size)]))
+    return out
+
+
+@pytest.mark.parametrize("section", [0.0, 0.3, -0.3])
+@pytest.mark.parametrize("plug_px", [18.0, 34.0])
+def test_a_plug_s_length_is_fitted_to_the_midpoints_near_the_end(plug_px, section):
+    """The stretch told is short of the plug (0.6 of it here; 0.6-0.85 seen):
+    the plug's length is fitted to the edge midpoints near the end instead,
+    whatever a last section's curvature adds there."""
+    rng = np.random.default_rng(2)
+    results = _profiled(plug_px, BENDS, rng, section=section)
+    assert plug.fitted_length(results, HW, 0.6 * plug_px) == pytest.approx(plug_px, abs=0.5)
+    # no plug's share in them: no length fitted (the shortest tried is best)
+    results = _profiled(0.0, BENDS, rng, section=section)
+    assert plug.fitted_length(results, HW, 0.6 * plug_px) is None
+    # too few frames to fit one
+    assert plug.fitted_length(_profiled(plug_px, BENDS[:4], rng), HW, 0.6 * plug_px) is None
 
 
 def test_too_few_or_too_little_bent_frames_tell_no_plug():
