@@ -589,7 +589,11 @@ def held_between(det: Detection, base: complex) -> Detection:
 #: tube 19 px wide: the path ran along the tube and turned 80 deg down the
 #: fibre, which was then tracked as the tube, held by "a holder").
 CROSSING_TURN_DEG = 60.0
-CROSSING_WIDE_HW = 8.0
+#: (A tube is 16-48 of its half-widths long (Table 1's, 8-12 mm by 0.25-0.5
+#: mm); the stretch before the crossing seen from 23 to 62, pipettes in. A
+#: faint fluorescent tube's outline, a blob of noise 13 of its half-widths
+#: long, was taken for the tube once the path's turn off it was cut.)
+CROSSING_WIDE_HW = 20.0
 #: Thinner branches cut away at most, one after another.
 CROSSINGS_MAX = 3
 

@@ -86,3 +86,25 @@ def test_a_fibre_at_the_tip_and_a_holder_leave_the_base_to_the_video(held_and_to
     assert (t.status == "ok").all()
     assert np.abs(t.bend_angle_deg - bends).max() < 1.0
     assert np.hypot(t.base_x_um - 90.0, t.base_y_um + 100.0).max() < 2.0
+
+
+@pytest.mark.parametrize(("wide_px", "turn_deg", "cut"), [
+    (150, 90.0, True),     # a tube 30 half-widths long, a fibre off it at right angles
+    (150, 30.0, False),    # ... running on near its line: a narrower holder's
+    (60, 90.0, False),     # a blob 12 half-widths long (a faint tube's noisy outline)
+])
+def test_the_path_is_cut_only_where_it_turns_off_a_tube_into_a_thinner_branch(
+        wide_px, turn_deg, cut):
+    from pipeline.segment import _crossing_branch
+
+    wide = np.c_[np.full(wide_px, 50.0), np.arange(wide_px, dtype=float)]
+    heading = np.radians(turn_deg)
+    thin = wide[-1] + np.arange(1, 61)[:, None] * np.array([np.sin(heading), np.cos(heading)])
+    path = np.vstack([wide, thin])
+    width = np.r_[np.full(wide_px, 10.0), np.full(60, 3.0)]
+    got = _crossing_branch(path, width)
+    assert (got is not None) == cut
+    if cut:
+        # the thinner branch from a wide half-width and a pixel past the turn on
+        assert np.array_equal(got, path[wide_px + 6:])
+    assert (_crossing_branch(path[::-1], width[::-1]) is not None) == cut
