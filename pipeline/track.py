@@ -1549,9 +1549,17 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
                                 tol_px=tol, tip_ratio=held))
         stage = "wide"
         held_fits = []
-        if crossing and typical_length is not None:
-            held_fits, freed = _held_length_fits(image, starts, look, typical_length, tol, held)
-            cands += freed
+        if typical_length is not None and (crossing or not any(accept(c) for c in cands)):
+            # (also where no fit keeps the tube's length: a faint tip's end
+            # found in the noise beyond it, or short of it)
+            held_fits, freed = _held_length_fits(image, starts, look, typical_length, tol, held,
+                                                 avoid_contact=crossing)
+            if crossing:
+                cands += freed
+            else:
+                # (not a tube whose end may have left the frame: held at its
+                # length, it runs on past the border)
+                held_fits = [f for f in held_fits if f.in_view is not None and f.in_view.all()]
         r = max(cands, key=rank)
         # (at a crossing every fit is steady: its residual is no test there)
         if held_fits and not (accept(r) and abs(r.curve.length - typical_length)
@@ -1823,7 +1831,8 @@ def _redetect(image, prev: Curve, look: TubeLook, settings: TrackSettings) -> Re
 
 
 def _held_length_fits(image, starts, look: TubeLook, length: float, tol: float,
-                      tip_ratio: float | None) -> tuple[list[Refined], list[Refined]]:
+                      tip_ratio: float | None, *, avoid_contact: bool = True
+                      ) -> tuple[list[Refined], list[Refined]]:
     """Fits of a tube that crosses itself from each of ``starts`` with its
     length held at ``length`` (the tube's own on the last frames where it did
     not cross itself), px; and the fits freed again from each of those.
@@ -1832,15 +1841,17 @@ def _held_length_fits(image, starts, look: TubeLook, length: float, tol: float,
     free length wanders with the end search, dragging the shape with it: at a
     curl that stopped or turned back, 24-34 deg off and then lost. A tube keeps
     its length from frame to frame, and at that length the coil's edges tell
-    how far round it turns."""
+    how far round it turns. (Also asked, without ``avoid_contact`` and not
+    freed, of a frame where no fit kept the tube's length.)"""
     held, freed = [], []
     for start in starts:
         fit = refine(image, start.with_params(start.coef, length), look,
                      window=1.5 * look.mean_half_width, iterations=10, fit_length=False,
-                     avoid_contact=True, tol_px=tol, tip_ratio=tip_ratio)
+                     avoid_contact=avoid_contact, tol_px=tol, tip_ratio=tip_ratio)
         held.append(replace(fit, length_held=True))
-        freed.append(refine(image, fit.curve, look, iterations=10, avoid_contact=True,
-                            tol_px=tol, tip_ratio=tip_ratio))
+        if avoid_contact:
+            freed.append(refine(image, fit.curve, look, iterations=10, avoid_contact=True,
+                                tol_px=tol, tip_ratio=tip_ratio))
     return held, freed
 
 

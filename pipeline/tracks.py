@@ -598,7 +598,8 @@ def _notes(results, stages, base_given: bool, rate) -> list[str]:
                  (" (only frames whose predicted tube touches itself need it)" if n_cross else ""))
     for stage, why in (("wide", "the fast fit failed its checks"),
                        ("length held", "where the tube crossed itself and its end hid in "
-                        "the other layer: the shape fitted at the tube's own length"),
+                        "the other layer, or no fit found its end where its length puts it (a "
+                        "faint tip): the shape fitted at the tube's own length"),
                        ("redetect", "the wide search failed too")):
         k = stages.get(stage, 0)
         notes.append(f"{stage} search ran on {k} of {n} frames" +

@@ -35,6 +35,8 @@ FROM_U = 0.2
 #: the border lies up to about a half-width inside it.
 REACH_SLACK_PX = 2.0
 #: The status of a frame whose tube runs out of the image.
+#: A centreline this far past the frame's edge, px, ran out of view.
+OUTSIDE_PX = 1.0
 OUT_OF_VIEW = "tube cut by the image's border (part of it out of view)"
 
 
@@ -87,6 +89,9 @@ def cut_by_border(results: list[FrameTrack], shape: tuple[int, int], disc=None
     # beyond a field stop's lit disc the frame is filled from the disc's edge:
     # a tube followed out there follows that fill, not the tube
     out = to_border < 0 if disc is not None else np.zeros(len(ok), bool)
+    # a centreline past the frame's edge (a fit at the tube's own length, its
+    # tip out of view) is a tube the border cuts, however long it was measured
+    out |= to_border < -OUTSIDE_PX
     note = None
     if not clear.any():
         note = ("the tube passes near the image's border on every frame: whether it runs "

@@ -43,7 +43,7 @@ def test_frames_after_a_reversal_are_found_again(tmp_path, monkeypatch):
     assert err[13:].max() < 2.0            # back down, once past the reversal
 
     # the reversal's frame, fitted with a free length only, is 34 deg off
-    monkeypatch.setattr(track, "_held_length_fits", lambda *args: ([], []))
+    monkeypatch.setattr(track, "_held_length_fits", lambda *args, **kwargs: ([], []))
     track_video(folder / "frames", tmp_path / "free", um_per_px=scale)
     free, _ = score_folder(folder, tmp_path / "free")
     assert free.angle_error_deg.abs().to_numpy()[12] > 20.0

@@ -39,6 +39,14 @@ def test_a_short_tube_reaching_the_border_is_cut_by_it_and_no_other():
     assert "1 of 6 frames" in note
 
 
+def test_a_centreline_past_the_border_is_out_whatever_its_length():
+    """A fit held at the tube's own length runs on past the frame's edge where
+    the tip left it: not short, but out of view all the same."""
+    results = [_straight(0, 200.0), _straight(1, 305.0), _straight(2, 299.5)]
+    marked, _ = cut_by_border(results, (100, 300))
+    assert [r.status for r in marked] == ["ok", OUT_OF_VIEW, "ok"]
+
+
 def test_no_frame_shows_the_whole_tube_so_nothing_is_marked_but_the_note_says_so():
     results = [_straight(i, 298.0, length=200.0 - 10 * i) for i in range(3)]
     marked, note = cut_by_border(results, (100, 300))
