@@ -38,11 +38,12 @@ MIN_BEND_RANGE_DEG = 60.0
 #: sum of absolute deviations a steady offset leaves (plugs on an independent
 #: renderer's scenes: 0.27-0.53).
 PROPORTION_SAD = 0.6
-#: The plug's length over the stretch told: the stretch is the one whose
-#: offset, times its weight, is largest, and a plug's offset grows towards the
-#: tip, so it is told short (of plugs 17-24 px long, drawn by this package's
-#: tests and an independent renderer: 0.80-0.87 of them, a quarter half-width
-#: apart).
+#: The plug's length over the stretch told, where :func:`fitted_length` fixes
+#: none: the stretch is the one whose offset, times its weight, is largest,
+#: and a plug's offset grows towards the tip, so it is told short (of plugs
+#: 17-24 px long, drawn by this package's tests and an independent renderer:
+#: 0.80-0.87 of them, a quarter half-width apart; of longer ones, less: the
+#: stretches tried end at 3 half-widths).
 PLUG_PER_STRETCH = 1.2
 
 
@@ -73,6 +74,8 @@ def plug_length(results: list[FrameTrack], half_width: float) -> float | None:
                        for r in seen])
     if not grows_with_bend(bend, offset):
         return None
+    # (the stretch told, carried on by PLUG_PER_STRETCH, where the profiles
+    # near the end fix no length)
     fitted = fitted_length(seen, half_width, px)
     return fitted if fitted is not None else float(PLUG_PER_STRETCH * px)
 
@@ -100,9 +103,15 @@ def fitted_length(results: list[FrameTrack], half_width: float, told_px: float
     over that stretch may differ (a last section's), which adds
     ``Δκ·(reach − d)²/2``, ``Δκ`` fitted for each frame. ``p`` is the one
     that leaves the least squares over the frames. (The stretch told is the
-    one whose mean offset weighs most, 0.6-0.85 of the plug; carried on by
+    one whose mean offset weighs most, 0.6-0.87 of the plug; carried on by
     :data:`PLUG_PER_STRETCH`, a plug longer than the stretches tried, 52 px
-    on an independent renderer's scene, came out at 36 px, 53.6 fitted.)
+    on an independent renderer's scene, came out at 36 px, 53.9 fitted.)
+
+    Lengths from ``told_px`` to a half-width short of the profiles' reach are
+    tried: a minimum at either end fixes none (a plug no longer than the
+    stretch told, or longer than about 5 half-widths), and the caller falls
+    back on :data:`PLUG_PER_STRETCH`. ``half_width`` is the tube's learnt
+    one, which the fits' reach was set by (a restart may have learnt another).
     """
     reach = END_PROFILE_HW * half_width
     data = []

@@ -424,7 +424,7 @@ class Refined:
         it, its edge midpoints' offset from the curve that the profiles
         farther off alone fit (px, along the left normal) and its weight;
         what a straight plug's length is fitted to
-        (:func:`pipeline.plug.plug_length`).
+        (:func:`pipeline.plug.fitted_length`).
     """
 
     curve: Curve

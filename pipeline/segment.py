@@ -98,8 +98,9 @@ class Detection:
         given base to the tube found off it, px (0 if none).
     held_at : tuple of complex, optional
         Where a narrower stretch at one end of :attr:`path` and a wider
-        holder at its other end each step to the tube, px (y up): the base is
-        at one of them, and the video tells which (set only then).
+        holder at its other end each step to the tube, in that order, px (y
+        up), both ends at the image border: the base is at one of them, and
+        the video tells which (set only then).
     """
 
     path: np.ndarray
@@ -540,19 +541,37 @@ def _in_line(path_rc: np.ndarray, split: int, ratio: float, half_width: float) -
     return cos >= np.cos(np.radians(PIPETTE_IN_LINE_DEG))
 
 
-def _holder_beyond(width: np.ndarray, split: int, ratio: float, trim: int,
-                   min_pipette: float) -> int | None:
-    """Where (an index of ``width``), past the tube that a narrower stretch
-    of ``width`` ends at ``split`` (``ratio`` after over before), the width
-    steps up by :data:`HOLDER_BEYOND_RATIO` or more to the path's other end:
-    a wider holder there; None where it does not."""
-    if 1 / 1.15 <= ratio <= 1.15 or split == 0:
+def _narrow_and_holder(width: np.ndarray, split: int, ratio: float, trim: int,
+                       min_pipette: float) -> tuple[int, int] | None:
+    """Where a path whose ``width`` steps at ``split`` (``ratio`` after over
+    before, :func:`_split_point`) runs from a narrower stretch at one end
+    onto the tube, and from the tube onto a holder wider by
+    :data:`HOLDER_BEYOND_RATIO` or more at the other: those two steps'
+    indices, the narrower stretch's first; None where it does not.
+
+    ``split`` is either step, whichever is the larger: the other is looked
+    for on the tube's side of it.
+    """
+    n = width.size
+    if 1 / 1.15 <= ratio <= 1.15 or not 0 < split < n:
         return None
-    tube = width[split:] if ratio > 1.0 else width[:split][::-1]
+    if ratio < 1.0:
+        # (the same, read from the other end)
+        found = _narrow_and_holder(width[::-1], n - split, 1.0 / ratio, trim, min_pipette)
+        return None if found is None else (n - found[0], n - found[1])
+    # narrower before the split: the narrow stretch there, a holder past the tube ...
+    tube = width[split:]
     step, step_ratio = _split_point(tube, trim)
-    if not (step and step_ratio >= HOLDER_BEYOND_RATIO and tube.size - step > min_pipette):
+    if step and step_ratio >= HOLDER_BEYOND_RATIO and tube.size - step > min_pipette:
+        return split, split + step
+    # ... or the holder after it, the narrow stretch before the tube
+    if ratio < HOLDER_BEYOND_RATIO or n - split <= min_pipette:
         return None
-    return split + step if ratio > 1.0 else split - step
+    tube = width[:split][::-1]
+    step, step_ratio = _split_point(tube, trim)
+    if step and step_ratio < 1 / 1.15 and tube.size - step > min_pipette:
+        return split - step, split
+    return None
 
 
 #: ... its width over the tube's there, at least: past a tube's own sections'
@@ -572,10 +591,12 @@ def held_between(det: Detection, base: complex) -> Detection:
     pts = det.path[i:j + 1] if i < j else det.path[j:i + 1][::-1]
     if pts.size < 4:
         return det
-    lead = pts[min(pts.size - 1, max(2, int(3 * det.half_width)))] - pts[0]
+    # (the path's points are a working pixel apart: three half-widths on)
+    spacing = float(np.median(np.abs(np.diff(pts))))
+    lead = pts[min(pts.size - 1, max(2, int(3 * det.half_width / max(spacing, 1e-9))))] - pts[0]
     return Detection(pts, complex(pts[0]), float(np.angle(lead)), det.half_width,
-                     "where the tube leaves the holder that stood still (told by the video: a "
-                     "thinner structure touched its tip, in line, on the first frame)")
+                     "where the tube leaves one of two structures at its ends (a narrower "
+                     "one, a wider holder), the one the video told: the other end moved")
 
 
 #: The longest path turning by more than this (deg) where it steps down by
@@ -589,10 +610,11 @@ def held_between(det: Detection, base: complex) -> Detection:
 #: tube 19 px wide: the path ran along the tube and turned 80 deg down the
 #: fibre, which was then tracked as the tube, held by "a holder").
 CROSSING_TURN_DEG = 60.0
-#: (A tube is 16-48 of its half-widths long (Table 1's, 8-12 mm by 0.25-0.5
-#: mm); the stretch before the crossing seen from 23 to 62, pipettes in. A
-#: faint fluorescent tube's outline, a blob of noise 13 of its half-widths
-#: long, was taken for the tube once the path's turn off it was cut.)
+#: The wider stretch's length at least, in its half-widths: a tube is 16-48
+#: of them long (Table 1's, 8-12 mm by 0.25-0.5 mm), and the stretches before
+#: the crossings seen ran 23-62, pipettes in. (A faint fluorescent tube's
+#: outline, a blob of noise 13 of its half-widths long, was taken for the
+#: tube once the path's turn off it was cut.)
 CROSSING_WIDE_HW = 20.0
 #: Thinner branches cut away at most, one after another.
 CROSSINGS_MAX = 3
@@ -775,12 +797,12 @@ def _detect_in(mask: np.ndarray, f: int, base_hint, base_end, *,
     dist = ndi.distance_transform_edt(filled)
     skel = _skeleton(filled)
     radius = float(np.median(dist[skel])) if skel.any() else 0.0
-    for _ in range(CROSSINGS_MAX + 1):
+    for cuts in range(CROSSINGS_MAX + 1):
         path_rc = longest_path(skel, border_bonus=2.0 * radius, margin=2.0 + radius)
         if path_rc.shape[0] < 5:
             return None
         width = 2 * dist[path_rc[:, 0], path_rc[:, 1]]
-        crossing = _crossing_branch(path_rc, width)
+        crossing = _crossing_branch(path_rc, width) if cuts < CROSSINGS_MAX else None
         if crossing is None:
             break
         # the path turned off the tube into a thinner structure crossing it:
@@ -824,9 +846,9 @@ def _detect_in(mask: np.ndarray, f: int, base_hint, base_end, *,
             in_line = _in_line(path_rc, split, ratio, half_width)
             # (a wider holder at the other end: the narrower stretch may be a
             # fibre or a scratch the tube's tip touches, in line with it)
-            far = _holder_beyond(width, split, ratio, trim, min_pipette)
-            if far is not None:
-                held_rc = path_rc[[split, far]]
+            steps = _narrow_and_holder(width, split, ratio, trim, min_pipette) if first_b else None
+            if steps is not None:
+                held_rc = path_rc[np.minimum(steps, width.size - 1)]
             if (first_b and ratio < 1 / 1.15 and width.size - split > min_pipette
                     and in_line and held_rc is None):
                 path_rc, width = path_rc[::-1], width[::-1]

@@ -1376,7 +1376,9 @@ def _refitted(pending, base: complex | None, turn: float, look: TubeLook | None,
                    avoid_contact=result.crossing, tol_px=settings.tol_px)
         out.append(replace(result, curve=_reported(r), fit=r.curve, residual_px=r.residual_px,
                            valid_fraction=r.valid_fraction, last_section=r.last_section,
-                           end_clear=look.clears_end, end_step=_told_step(look))
+                           end_clear=look.clears_end, end_step=_told_step(look),
+                           end_offset=r.end_offset, end_steps=r.end_steps,
+                           told_offset=r.told_offset, end_profile=r.end_profile)
                    if _good(r, look) else restaged.get(result.frame, result))
     # a held-back frame that bent away from the frames either side of it and
     # back (the frame after a start has no motion to be predicted from, and a
@@ -1404,7 +1406,8 @@ def _refitted(pending, base: complex | None, turn: float, look: TubeLook | None,
                 out[i] = FrameTrack(out[i].frame, "ok", _reported(r), "backward", r.residual_px,
                                     r.valid_fraction, fit=r.curve, crossing=crossing,
                                     last_section=r.last_section,
-                                    end_step=_told_step(look), stage_shift=stage)
+                                    end_step=_told_step(look), stage_shift=stage,
+                                    told_offset=r.told_offset, end_profile=r.end_profile)
         # a motion only between consecutive frames
         after = later if out[i].ok and i + 1 < len(out) and out[i + 1].ok else None
         later, stage = (out[i].tracked, out[i].stage_shift) if out[i].ok else (later, stage)
@@ -1559,7 +1562,8 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
             else:
                 # (not a tube whose end may have left the frame: held at its
                 # length, it runs on past the border)
-                held_fits = [f for f in held_fits if f.in_view is not None and f.in_view.all()]
+                held_fits = [f for f in held_fits
+                             if f.in_view is not None and f.in_view[f.u >= HELD_VIEW_U].all()]
         r = max(cands, key=rank)
         # (at a crossing every fit is steady: its residual is no test there)
         if held_fits and not (accept(r) and abs(r.curve.length - typical_length)
@@ -1828,6 +1832,12 @@ def _redetect(image, prev: Curve, look: TubeLook, settings: TrackSettings) -> Re
     # can also run on where the fine one stopped short of the length step: a
     # faint MP4 frame, +5.5 % fine, then +9.8 %)
     return _length_held(image, r, prev, look, tol)
+
+
+#: A fit at the tube's own length on a frame without a crossing is used only
+#: where its search range lies in the frame from this fraction of the length
+#: on (a base at the border is no tip run out of view).
+HELD_VIEW_U = 0.5
 
 
 def _held_length_fits(image, starts, look: TubeLook, length: float, tol: float,

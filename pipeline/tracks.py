@@ -574,6 +574,14 @@ def _static_end(reader, det):
         tube, ends, seen = det, det.path[[0, -1]], "no pipette or border seen"
     motion = end_motion(iter(reader), np.c_[-tube.path.imag, tube.path.real], det.half_width)
     if not motion.decided:
+        if det.held_at is not None:
+            # (the wider holder holds, rather than a narrower stretch that may
+            # be a fibre: the tube tracked between them either way)
+            end = det.held_at[1]
+            return (end.real, -end.imag), (
+                f"base end ambiguous ({seen}, and both moved alike over {motion.frames} "
+                "frames): took the wider holder's; give --base X,Y if it is wrong"), \
+                held_between(det, end)
         return None, (f"base end ambiguous ({seen}, and both ends moved "
                       f"alike over {motion.frames} frames): took the end nearer the border; "
                       "give --base X,Y if it is wrong"), det

@@ -34,9 +34,10 @@ FROM_U = 0.2
 #: Slack on the border's distance, px: a centreline fitted to a tube cut by
 #: the border lies up to about a half-width inside it.
 REACH_SLACK_PX = 2.0
-#: The status of a frame whose tube runs out of the image.
-#: A centreline this far past the frame's edge, px, ran out of view.
+#: A centreline this far past the frame's edge (px of the frames tracked)
+#: ran out of view, however long it was measured.
 OUTSIDE_PX = 1.0
+#: The status of a frame whose tube runs out of the image.
 OUT_OF_VIEW = "tube cut by the image's border (part of it out of view)"
 
 
@@ -109,5 +110,5 @@ def cut_by_border(results: list[FrameTrack], shape: tuple[int, int], disc=None
     border = "the image's border" + (" or the field stop's edge" if disc is not None else "")
     return marked, (f"tube cut by {border} on {int(out.sum())} of {len(results)} frames "
                     f"(shorter there, by over {100 * SHORT_FRACTION:g} %, than on the frames that "
-                    "show it clear of the border, or followed past the field stop's lit disc): "
-                    "those frames are not measured")
+                    "show it clear of the border, or its centreline run on past the frame's "
+                    "edge or the field stop's lit disc): those frames are not measured")

@@ -46,18 +46,21 @@ def test_a_fibre_across_the_tube_is_not_followed(tmp_path):
     assert abs(det.base - z[0]) < 10.0, (det.base, z[0])
 
 
-@pytest.fixture(scope="module")
-def held_and_touched(tmp_path_factory):
-    """A tube leaving a wider holder at the left border, bending down 12 deg
-    per frame; a still fibre runs from its tip, in line, to the right border
-    on the first frame. Returns the frames' folder and the true bends (deg)."""
+@pytest.fixture(scope="module", params=[11.0, 16.0])
+def held_and_touched(tmp_path_factory, request):
+    """A tube 7 px in half-width leaving a wider holder (11 or 16 px: the
+    fibre's step or the holder's the larger) at the left border, bending
+    down 12 deg per frame; a still fibre runs from its tip, in line, to the
+    right border on the first frame. Returns the frames' folder and the
+    true bends (deg)."""
     folder = tmp_path_factory.mktemp("held") / "frames"
     folder.mkdir()
     base, length = 90 - 100j, 250.0
     bends = -12.0 * np.arange(8)
     for k, bend in enumerate(bends):
         img = tube_image((320, 480), base, 0.0, length, np.radians(bend) / length - 1e-12, 7.0,
-                         pipette_half_width=11.0, pipette_contrast=1.0, noise=0.01, seed=k)
+                         pipette_half_width=request.param, pipette_contrast=1.0, noise=0.01,
+                         seed=k)
         img = _darken_along(img, 340 + 100j, 479 + 80j, 2, 0.35)
         cv2.imwrite(str(folder / f"f{k:02d}.png"), np.clip(img * 255, 0, 255).round()
                     .astype(np.uint8))
@@ -107,4 +110,23 @@ def test_the_path_is_cut_only_where_it_turns_off_a_tube_into_a_thinner_branch(
     if cut:
         # the thinner branch from a wide half-width and a pixel past the turn on
         assert np.array_equal(got, path[wide_px + 6:])
-    assert (_crossing_branch(path[::-1], width[::-1]) is not None) == cut
+    back = _crossing_branch(path[::-1], width[::-1])
+    assert (back is not None) == cut
+    if cut:
+        assert np.array_equal(back[::-1], path[wide_px + 6:])
+
+
+@pytest.mark.parametrize("holder", [10.0, 20.0])
+def test_a_narrower_stretch_and_a_wider_holder_are_found_whichever_steps_more(holder):
+    """A fibre (3 px) at one end of the path, a tube (7) and a holder (10 or
+    20) at the other: the two steps, the narrower's first, whichever of them
+    the single split found; read from either end; none without the holder."""
+    from pipeline.segment import _narrow_and_holder, _split_point
+
+    width = np.r_[np.full(60, 3.0), np.full(200, 7.0), np.full(80, holder)]
+    for w, steps in ((width, (60, 260)), (width[::-1], (280, 80))):
+        split, ratio = _split_point(w, 4)
+        assert _narrow_and_holder(w, split, ratio, 4, 14.0) == steps
+    plain = width[:260]
+    split, ratio = _split_point(plain, 4)
+    assert _narrow_and_holder(plain, split, ratio, 4, 14.0) is None

@@ -56,12 +56,14 @@ def test_a_tube_that_suddenly_grows_is_not_reported_as_measured():
         assert bad.curve is None and "length" in bad.status
 
 
-def test_a_frame_whose_tip_fades_is_fitted_at_the_tube_s_own_length(monkeypatch):
+@pytest.mark.parametrize("base_col", [80, 3])
+def test_a_frame_whose_tip_fades_is_fitted_at_the_tube_s_own_length(monkeypatch, base_col):
     """The last 60 px about the tip fade into the background on one frame
     (out of focus, a low-contrast tube): no fit finds the end where the
     tube's length puts it, and the frame was lost ("tip not found"). It is
-    now fitted with the length held at the tube's own, as at a crossing."""
-    base, length = 80 - 200j, 300.0
+    now fitted with the length held at the tube's own, as at a crossing;
+    also where the base sits at the image's border."""
+    base, length = base_col - 200j, 300.0
     bends = -10.0 * np.arange(10)
     frames = []
     for k, bend in enumerate(bends):
@@ -73,13 +75,13 @@ def test_a_frame_whose_tip_fades_is_fitted_at_the_tube_s_own_length(monkeypatch)
             fade = np.clip(1 - np.hypot(cc - tip.real, rr + tip.imag) / 60.0, 0, 1)
             img = img * (1 - fade) + 0.8 * fade
         frames.append(np.clip(img * 255, 0, 255).round().astype(np.uint8))
-    results = list(track_frames(frames, base_hint=(80, 200)))
+    results = list(track_frames(frames, base_hint=(base_col, 200)))
     assert all(r.ok for r in results)
     assert results[5].stage == "length held"
     assert abs(results[5].curve.length - length) < 1.0
     assert abs(np.degrees(results[5].bend_angle_rad) - bends[5]) < 0.5
     monkeypatch.setattr(track, "_held_length_fits", lambda *args, **kwargs: ([], []))
-    assert not list(track_frames(frames, base_hint=(80, 200)))[5].ok
+    assert not list(track_frames(frames, base_hint=(base_col, 200)))[5].ok
 
 
 def test_every_frame_of_a_clean_scene_is_measured_with_its_length():
