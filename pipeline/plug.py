@@ -167,18 +167,35 @@ def grows_with_bend(bend: np.ndarray, offset: np.ndarray) -> bool:
     return slope < 0.0 and proportional <= PROPORTION_SAD * steady
 
 
-def straight_end(curve: Curve, length: float) -> Curve:
+def straight_end(curve: Curve, length: float, arc_px: float = 0.0) -> Curve:
     """``curve`` with its last ``length`` px straight, along its direction
     where that stretch begins (a joint there: its curvature may step to 0).
 
     The shape before it, the base and the total length are kept; the tip's
-    direction (``coef[-1]``) is the curve's at the stretch's start.
+    direction (``coef[-1]``) is the curve's at the stretch's start. With
+    ``arc_px`` > 0, that direction is the arc's from ``arc_px`` to three
+    times that before the start (not past the curve's last joint before
+    that),
+    carried on to it at its curvature, and the last ``arc_px`` before it
+    follow that arc: a fit that kept the edges of the plug's first pixels
+    (the stretch told short of it) bent less there.
     """
     if not 0.0 < length < curve.length:
         return curve
     u_plug = 1.0 - length / curve.length
     basis = basis_of(curve)
     phi = evaluate(curve, basis).phi - curve.base_angle
+    if arc_px > 0.0:
+        s, start = basis.u * curve.length, curve.length - length
+        # (within the last section: its curvature is the one carried on; a
+        # joint within arc_px of the start is the plug's own kink, found)
+        since = max([j * curve.length for j in curve.joints
+                     if j * curve.length < start - arc_px] + [0.0])
+        arc = (s >= max(start - 3.0 * arc_px, since)) & (s <= start - arc_px)
+        if arc.sum() >= 3:
+            slope, at0 = np.polyfit(s[arc], phi[arc], 1)
+            bridge = s > start - arc_px
+            phi = np.where(bridge, slope * s + at0, phi)
     target = np.where(basis.u < u_plug, phi, np.interp(u_plug, basis.u, phi))
     joints = tuple(sorted({*(j for j in curve.joints if j < u_plug - 0.02), u_plug}))
     # (a joint costs two coefficients: the shape before it kept as it was)
@@ -200,7 +217,8 @@ def straighten_plugs(results: list[FrameTrack], half_width: float | None, px: fl
     if plug is None:
         return results, None
     # (the last section's record describes the curve before, and goes)
-    out = [replace(r, curve=straight_end(r.curve, plug), plug_px=plug, last_section=None)
+    out = [replace(r, curve=straight_end(r.curve, plug, half_width), plug_px=plug,
+                   last_section=None)
            if r.ok else r for r in results]
     return out, (f"the end's sideways offset grew with the bend, opposite its sense: a straight "
                  f"plug {plug * px:.1f} px long (a sealed end, which the pressure does not "

@@ -169,12 +169,32 @@ def test_a_tube_with_a_straight_plug_is_tracked_to_the_plug_s_direction(tmp_path
     assert any("straight plug" in n for n in run.notes), run.notes
     # (the plug's start is no section joint)
     assert any(n.startswith("section joints: none found") for n in run.notes), run.notes
-    assert err.max() < 2.0, err.round(2).tolist()
+    # (the frames fitted before the stretch was told kept the plug's edges,
+    # and bent less where it begins: 0.3-1.2 deg off, before the direction
+    # was read from the arc before it)
+    assert err.max() < 0.6, err.round(2).tolist()
     # the arc carried on to the end turns the tip on by the plug's share of the bend
     monkeypatch.setattr(plug, "PROPORTION_SAD", -1.0)
     track_video(folder, tmp_path / "arc", um_per_px=1.0, base=(520, 400))
     arc = pd.read_csv(tmp_path / "arc" / "tracks.csv")
     assert np.abs(arc.bend_angle_deg - truth).max() > 4.0
+
+
+def test_a_straight_end_s_direction_can_be_read_from_the_arc_before_it():
+    """A fit that kept the plug's first edges bends less just before the
+    plug: read ``arc_px`` before the start and carried on at the arc's
+    curvature, the direction is the arc's; read at the start, it is short."""
+    kappa, length, plug_px = 0.01, 300.0, 30.0
+    start = length - plug_px
+    s = np.linspace(0.0, length, 601)
+    # the arc's heading, flattened over the last 10 px before the plug
+    phi = kappa * np.minimum(s, start - 10.0) + 0.5 * kappa * np.clip(s - start + 10.0, 0, 10.0)
+    z = np.concatenate([[0j], np.cumsum(np.exp(1j * 0.5 * (phi[1:] + phi[:-1])) * np.diff(s))])
+    curve = fit_to_polyline(z, 0.0, n_coef=40)
+    true = kappa * start
+    assert abs(plug.straight_end(curve, plug_px).coef[-1] - true) > np.radians(2.0)
+    read = plug.straight_end(curve, plug_px, 12.0).coef[-1]
+    assert read == pytest.approx(true, abs=np.radians(0.3))
 
 
 def test_a_straight_end_fits_a_curve_with_the_fewest_coefficients_its_joints_allow():
