@@ -49,7 +49,8 @@ PLUG_PER_STRETCH = 1.2
 
 def plug_length(results: list[FrameTrack], half_width: float) -> float | None:
     """The length of a straight plug at the tube's end, px, where the frames
-    tell one (see the module's notes); else None.
+    tell one (see the module's notes); else None. (:func:`told_plug` also
+    says how the length was found.)
 
     Parameters
     ----------
@@ -60,6 +61,15 @@ def plug_length(results: list[FrameTrack], half_width: float) -> float | None:
     half_width : float
         The tube's half-width the end's stretches were measured in, px.
     """
+    found = told_plug(results, half_width)
+    return None if found is None else found[0]
+
+
+def told_plug(results: list[FrameTrack], half_width: float) -> tuple[float, bool] | None:
+    """:func:`plug_length`'s length, and whether it was fitted to the edge
+    midpoints near the end (:func:`fitted_length`) rather than carried on
+    from the stretch told (:data:`PLUG_PER_STRETCH`); None where no plug is
+    told."""
     told = [r.end_step for r in results if r.ok and r.end_step is not None]
     # (not where the tube crossed itself, as the votes did not)
     seen = [r for r in results if r.ok and not r.crossing]
@@ -77,11 +87,14 @@ def plug_length(results: list[FrameTrack], half_width: float) -> float | None:
     # (the stretch told, carried on by PLUG_PER_STRETCH, where the profiles
     # near the end fix no length)
     fitted = fitted_length(seen, half_width, px)
-    return fitted if fitted is not None else float(PLUG_PER_STRETCH * px)
+    return (fitted, True) if fitted is not None else (float(PLUG_PER_STRETCH * px), False)
 
 
-#: The plug lengths tried by :func:`fitted_length`, px apart.
+#: The plug lengths tried by :func:`fitted_length`, px apart ...
 LENGTH_STEP_PX = 0.25
+#: ... over the frames measured once the stretch was told, at least this many
+#: (a score of profiles each; the plug is told already, by :func:`grows_with_bend`).
+FIT_MIN_FRAMES = 3
 #: ... fitted to the profiles farther than this many half-widths from the
 #: tip: the end's face pulls the edges nearer it (plugs of 21.2 and 39.6 px
 #: on an independent renderer's scenes came out at 19.9 and 36.1 px with
@@ -127,7 +140,7 @@ def fitted_length(results: list[FrameTrack], half_width: float, told_px: float
         kappa = np.polyfit(s[before], np.unwrap(evaluate(curve, basis).phi[before]), 1)[0]
         d, off, w = r.end_profile[r.end_profile[:, 0] >= FACE_HW * half_width].T
         data.append((kappa, d, off, w, (reach - d) ** 2 / 2))
-    if len(data) < MIN_FRAMES:
+    if len(data) < FIT_MIN_FRAMES:
         return None
     lengths = np.arange(told_px, reach - half_width, LENGTH_STEP_PX)
     if lengths.size < 3:
@@ -213,13 +226,17 @@ def straighten_plugs(results: list[FrameTrack], half_width: float | None, px: fl
     frames (binning), for the note."""
     if half_width is None:
         return results, None
-    plug = plug_length(results, half_width)
-    if plug is None:
+    found = told_plug(results, half_width)
+    if found is None:
         return results, None
+    plug, fitted = found
     # (the last section's record describes the curve before, and goes)
     out = [replace(r, curve=straight_end(r.curve, plug, half_width), plug_px=plug,
                    last_section=None)
            if r.ok else r for r in results]
+    how = ("fitted to the edges near the end over the frames" if fitted else
+           f"{PLUG_PER_STRETCH:g}x the stretch told: the edges near the end fixed no length")
     return out, (f"the end's sideways offset grew with the bend, opposite its sense: a straight "
-                 f"plug {plug * px:.1f} px long (a sealed end, which the pressure does not "
-                 "bend); every frame's tip direction taken where it begins")
+                 f"plug {plug * px:.1f} px long ({how}; a sealed end, which the pressure does "
+                 "not bend); every frame's tip direction taken where it begins, from the arc "
+                 "before it")
