@@ -532,11 +532,19 @@ def _without_holder(frames, results, det, base_hint, px):
 
     Also where the first frame's detection was set aside (the base end chosen
     by motion: a tapered capillary whose wide end the detector did not take
-    for the tube leaves the tube's end unseen), with the half-width the
-    tracker learnt where it started."""
+    for the tube leaves the tube's end unseen).
+
+    With the half-width the tracker learnt from the tube's edges where it
+    started, not the detection's: that one is read off a threshold's mask
+    and came out 1.4x the tube's on blurred rims, so that a holder showing
+    for under three tube widths seemed shorter than the two widths a holder's
+    stretch must have (an independent renderer's short pipettes: bases 55 and
+    74 px inside them, lengths 11 % long)."""
     if base_hint is not None:
         return results, None
-    half_width = det.half_width if det is not None else _learnt_half_width(results)
+    half_width = _learnt_half_width(results)
+    if half_width is None and det is not None:
+        half_width = det.half_width
     if half_width is None:
         return results, None
     return drop_holder(results, lambda: as_float(frames.first), half_width, px)

@@ -42,14 +42,14 @@ def _video(tmp_path, holder: float | None, n: int = 8, base=BASE, turn=TURN, hw=
     return folder, np.array(bends)
 
 
-def _cut_and_measured(folder, out, bends) -> dict:
+def _cut_and_measured(folder, out, bends, base=BASE) -> dict:
     """Track ``folder`` into ``out``; assert every frame measured, its base
     where the tube leaves the holder (1.5 px), its length (1 %) and bend
     (0.5 deg) the tube's; the run's record."""
     track_video(folder, out, um_per_px=1.0)
     t = pd.read_csv(out / "tracks.csv")
     assert (t.status == "ok").all()
-    assert np.hypot(t.base_x_um - BASE.real, t.base_y_um - BASE.imag).max() < 1.5
+    assert np.hypot(t.base_x_um - base.real, t.base_y_um - base.imag).max() < 1.5
     assert np.abs(t.length_um / LENGTH - 1).max() < 0.01
     assert np.abs(t.bend_angle_deg - bends).max() < 0.5
     return json.loads((out / "run.json").read_text())
@@ -69,6 +69,16 @@ def test_a_holder_as_wide_as_the_tube_is_cut_off_every_frame(tmp_path, monkeypat
     track_video(folder, tmp_path / "kept", um_per_px=1.0)
     kept = pd.read_csv(tmp_path / "kept" / "tracks.csv")
     assert kept.length_um.min() > LENGTH + 150
+
+
+def test_a_holder_showing_for_under_three_tube_widths_is_cut_off(tmp_path):
+    # 40 px of holder between the base and the border: 2.5 of the tube's widths,
+    # but under 2 of the first frame's rough widths (its mask, blurred edges and
+    # all, came out 1.4x as wide), by which a holder's shortest stretch is judged
+    base = 600 - 240j
+    folder, bends = _video(tmp_path, holder=1.0, base=base)
+    run = _cut_and_measured(folder, tmp_path / "out", bends, base=base)
+    assert any("holder (pipette) taken for the tube" in n for n in run["left_out_and_why"])
 
 
 def test_a_holder_of_the_tube_s_own_look_is_cut_where_the_bending_starts(tmp_path,
