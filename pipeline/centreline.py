@@ -340,6 +340,36 @@ def fit_to_polyline(points, base_angle: float, *, n_coef: int, n_grid: int | Non
     return curve
 
 
+def cut_base(curve: Curve, s: float, base_angle: float | None = None,
+             joints: tuple[float, ...] | None = None) -> Curve:
+    """``curve`` from arc length ``s`` (px) on, with the same spline size and
+    the joints beyond ``s`` (but those within 2 % of the new length of it;
+    or ``joints``, fractions of the new length); for ``s < 0``, carried
+    straight back by ``-s`` px along its base tangent first.
+
+    Its base tangent is ``base_angle`` (rad; default: the curve's tangent at
+    ``s``): a tube leaves its holder along the holder's axis, where a fit
+    through both, whose curvature cannot step, has already turned a little.
+    """
+    n = int(np.ceil(curve.length / 0.25)) + 1
+    basis = basis_of(curve, max(n, 2))
+    smp = evaluate(curve, basis)
+    arc, z, phi = basis.u * curve.length, smp.z, smp.phi
+    length = curve.length - s
+    if joints is None:
+        joints = tuple(float((j * curve.length - s) / length) for j in curve.joints
+                       if j * curve.length - s > 0.02 * length)
+    basis = make_basis(curve.coef.size, basis_of(curve).n_grid, joints)
+    if base_angle is None:
+        base_angle = float(np.interp(s, arc, phi))   # (the base tangent's, for s < 0)
+    turn = np.interp(s + basis.u * length, arc, phi) - base_angle
+    coef, *_ = np.linalg.lstsq(basis.values, turn, rcond=None)
+    coef[-1] = turn[-1]     # the tip's angle exactly (only the last function reaches u = 1)
+    base = (complex(np.interp(s, arc, z.real), np.interp(s, arc, z.imag)) if s >= 0
+            else curve.base + s * np.exp(1j * curve.base_angle))
+    return Curve(base, float(base_angle), length, coef, joints)
+
+
 def resample(curve: Curve, spacing_px: float = 1.0):
     """Points at uniform arc-length spacing ≤ ``spacing_px``, base to tip.
 

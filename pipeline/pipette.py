@@ -46,7 +46,7 @@ from functools import cache
 import numpy as np
 from scipy.ndimage import map_coordinates
 
-from .centreline import Curve, basis_of, evaluate, make_basis, resample
+from .centreline import Curve, basis_of, cut_base, evaluate, resample
 from .profiles import sample_lines
 from .track import FrameTrack
 
@@ -55,8 +55,14 @@ MIN_BEND_DEG = 45.0
 #: A point stays on the first frame's centreline within this (px, at least;
 #: and a fifth of the tube's half-width).
 STILL_PX = 1.0
-#: The holder's stretch must be at least this many tube widths long.
+#: The stretch that stood still, or that a hinge fitted to the bent frames
+#: puts the holder's end at, must be at least this many tube widths long ...
 MIN_WIDTHS = 2.0
+#: ... but the profiles' step from the holder to the tube is looked for from
+#: this many on: the fit may have run on into the holder by less than
+#: :data:`MIN_WIDTHS` (23 px, 1.6 widths, into an independent scene's glass),
+#: and the profiles' step tells the holder where the motion cannot.
+STEP_WIDTHS = 1.0
 #: The tube beyond it must keep at least this share of the length tracked.
 MIN_TUBE_SHARE = 0.4
 #: A frame's tube beyond the holder's end must be within this share of the
@@ -313,8 +319,10 @@ def profile_change(image: np.ndarray, curve: Curve, half_width: float, upto: flo
     half_width : float
         The tube's, px: the profiles span three on each side.
     upto : float
-        Arc length searched, px; the change is at least :data:`MIN_WIDTHS`
-        tube widths from the base.
+        Arc length searched, px; the first profile like the tube's past the
+        change is at least :data:`STEP_WIDTHS` tube widths from the base (the
+        change itself, the blurred edge before it, up to two half-widths
+        nearer: :func:`_end_edge`).
 
     Returns
     -------
@@ -334,6 +342,7 @@ def profile_change(image: np.ndarray, curve: Curve, half_width: float, upto: flo
     s, z, _, normal = _sampled(curve)
     width_px = 2 * half_width
     k_min = int(np.ceil(MIN_WIDTHS * width_px))
+    k_step = int(np.ceil(STEP_WIDTHS * width_px))
     n = min(int(np.floor(upto)) + 1, s.size)
     n_ref = min(int(np.ceil(REFERENCE_WIDTHS * width_px)), s.size - n)
     if n - k_min < 3 or n_ref < max(8, 0.5 * REFERENCE_WIDTHS * width_px):
@@ -352,7 +361,7 @@ def profile_change(image: np.ndarray, curve: Curve, half_width: float, upto: flo
     # that reach, the holder's end by 10-40 times
     w = max(int(round(half_width)), 3)
     c = np.r_[0.0, np.cumsum(dev)]
-    k = np.arange(max(k_min, w), n - w + 1)
+    k = np.arange(max(k_step, w), n - w + 1)
     if not k.size:
         return 0.0, 0.0
     before = (c[k] - c[k - w]) / w
@@ -414,28 +423,6 @@ def _end_edge(s: np.ndarray, dev: np.ndarray, at: int, half_width: float) -> flo
     pos = lo + j - 0.5 + frac
     k = int(np.floor(pos))
     return float(s[k] + (s[min(k + 1, s.size - 1)] - s[k]) * (pos - k))
-
-
-def cut_base(curve: Curve, s: float, base_angle: float | None = None) -> Curve:
-    """``curve`` from arc length ``s`` (px) on, with the same spline size and
-    the joints beyond ``s`` (but those within 2 % of the new length of it).
-
-    Its base tangent is ``base_angle`` (rad; default: the curve's tangent at
-    ``s``): a tube leaves its holder along the holder's axis, where a fit
-    through both, whose curvature cannot step, has already turned a little.
-    """
-    arc, z, phi, _ = _sampled(curve, 0.25)
-    length = curve.length - s
-    joints = tuple(float((j * curve.length - s) / length) for j in curve.joints
-                   if j * curve.length - s > 0.02 * length)
-    basis = make_basis(curve.coef.size, basis_of(curve).n_grid, joints)
-    if base_angle is None:
-        base_angle = float(np.interp(s, arc, phi))
-    turn = np.interp(s + basis.u * length, arc, phi) - base_angle
-    coef, *_ = np.linalg.lstsq(basis.values, turn, rcond=None)
-    coef[-1] = turn[-1]     # the tip's angle exactly (only the last function reaches u = 1)
-    base = complex(np.interp(s, arc, z.real), np.interp(s, arc, z.imag))
-    return Curve(base, float(base_angle), length, coef, joints)
 
 
 def axis_angle(curve: Curve, s: float) -> float:
@@ -568,7 +555,7 @@ def _profile_holder(ok: list[FrameTrack], image: np.ndarray, half_width: float,
     found = None
     for upto in np.unique(np.minimum(2 * least * 1.5 ** np.arange(12), reach)):
         at, change = profile_change(image, first, half_width, upto)
-        if change < MIN_CHANGE or at < least or (found and at <= found[0] + 1.0):
+        if change < MIN_CHANGE or (found and at <= found[0] + 1.0):
             continue
         wobble = rigid_wobble(spread, at)
         hinge, gain, _ = (motion_hinge(spread, half_width, at + 2 * half_width) if bent
@@ -638,6 +625,9 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
     still = static_stretch(results, half_width, least)
     first = results[0].curve
     told = None
+    # (a holder's end told by its profiles may lie nearer the tracked base than
+    # ``least``: see STEP_WIDTHS)
+    profiled = True
     if still >= least:
         s, change = profile_change(first_frame(), first, half_width,
                                    still + HOLDER_REACH_HW * half_width)
@@ -645,6 +635,7 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
                 f"while the rest bent, and its profile stepped there by {change:.0f}x its "
                 "scatter" if change >= MIN_CHANGE else None)
         if told is None:
+            profiled = False
             s, gain, spread = motion_hinge(results, half_width, still + 2 * half_width)
             if gain >= MIN_HINGE_GAIN and spread <= max(HINGE_SPREAD_PX, 0.25 * half_width):
                 told = (f"the tracked structure's first {s * px:.0f} px stood still on every "
@@ -664,7 +655,8 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
                     f"{wobble * px:.1f} px, its drift aside)")
             told = (f"the profiles along the tracked structure stepped by {change:.0f}x "
                     f"their scatter {s * px:.0f} px from its start, and {kept}")
-    if told is None or s < least or first.length - s < MIN_TUBE_SHARE * first.length:
+    if (told is None or (s < least and not profiled)
+            or first.length - s < MIN_TUBE_SHARE * first.length):
         return [r.moved(r.stage_shift - origin) for r in results], None
     arc, z, _, _ = _sampled(first, 0.25)
     end = complex(np.interp(s, arc, z.real), np.interp(s, arc, z.imag))

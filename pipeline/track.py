@@ -53,6 +53,7 @@ import numpy as np
 from .centreline import (
     Curve,
     basis_of,
+    cut_base,
     evaluate,
     fit_to_polyline,
     n_coef_for,
@@ -1061,8 +1062,10 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
             path = _stage_path(pending, drift, measured)
             pending, restaged = _staged(pending, path)
             base, turn = votes.settled(history, followed(), path)
+            turn = _turn_past_holder(pending, history, base, turn, look.mean_half_width)
             if base is not None or turn:
-                history = [_moved_base(h, None if base is None else base + followed(), turn)
+                history = [_moved_base(h, None if base is None else base + followed(), turn,
+                                       look.mean_half_width)
                            for h in history]
                 held_base = _base_col_row(history[-1])
             done, pending = _refitted(pending, base, turn, look, settings, restaged), None
@@ -1329,15 +1332,75 @@ def _on_stage(r: FrameTrack, shift: complex) -> FrameTrack:
     return replace(r.moved(shift - r.stage_shift), stage_shift=shift)
 
 
-def _moved_base(curve: Curve, base: complex | None, turn: float = 0.0) -> Curve:
-    """``curve`` with its base moved along its base axis to abreast of ``base``
-    (its tip kept) and its base tangent turned by ``turn`` rad (the shape past
-    the first spline span kept: B_0 = 1 − Σ B_k, so φ(0) + d with every other
-    coefficient − d changes φ only where B_0 is not 0)."""
+def _moved_base(curve: Curve, base: complex | None, turn: float = 0.0,
+                slide_px: float = 0.0) -> Curve:
+    """``curve`` with its base moved along its base axis to abreast of
+    ``base`` and its base tangent turned by ``turn`` rad (the shape past the
+    first spline span kept: B_0 = 1 − Σ B_k, so φ(0) + d with every other
+    coefficient − d changes φ only where B_0 is not 0).
+
+    A move of at most ``slide_px`` (px) slides the whole curve along the axis
+    (its tip kept abreast); a longer one cuts it where it first gets that far
+    along the axis, or carries it straight back, the shape beyond kept (the
+    joints at the same fractions of the length, as the width record and the
+    frames after them have them). Where the tracked structure turns off the
+    axis near its start (a skeleton that ran into a wide glass at a slant),
+    a slide of tens of px put a bent tube's far end as far off the frame's,
+    and its refit found no edges."""
+    if base is None:
+        return replace(curve, base_angle=curve.base_angle + turn, coef=curve.coef - turn)
     axis = np.exp(1j * curve.base_angle)
-    shift = 0.0 if base is None else float(np.real((base - curve.base) * np.conj(axis)))
-    return replace(curve, base=curve.base + shift * axis, length=max(curve.length - shift, 2.0),
-                   base_angle=curve.base_angle + turn, coef=curve.coef - turn)
+    shift = float(np.real((base - curve.base) * np.conj(axis)))
+    if abs(shift) <= slide_px:
+        return replace(curve, base=curve.base + shift * axis,
+                       length=max(curve.length - shift, 2.0),
+                       base_angle=curve.base_angle + turn, coef=curve.coef - turn)
+    if shift > 0:
+        shift = _cut_at(curve, base)[0]
+    # (the base tangent as before, turned: the votes measured it against that)
+    return cut_base(curve, min(shift, curve.length - 2.0), curve.base_angle + turn,
+                    curve.joints)
+
+
+def _cut_at(curve: Curve, base: complex) -> tuple[float, float]:
+    """How far along ``curve`` (px of arc) it first gets as far along its base
+    axis as ``base``, and its tangent there, rad (for a ``base`` ahead of
+    its own: ``(0, base tangent)`` otherwise)."""
+    axis = np.exp(1j * curve.base_angle)
+    shift = float(np.real((base - curve.base) * np.conj(axis)))
+    if shift <= 0:
+        return 0.0, curve.base_angle
+    basis = basis_of(curve, int(np.ceil(curve.length / 0.25)) + 1)
+    smp = evaluate(curve, basis)
+    along = np.real((smp.z - curve.base) * np.conj(axis)) >= shift
+    k = int(np.argmax(along)) if along.any() else smp.z.size - 1
+    return float(basis.u[k] * curve.length), float(smp.phi[k])
+
+
+def _turn_past_holder(pending, history: list[Curve], base: complex | None, turn: float,
+                      half_width: float) -> float:
+    """The base tangent's turn (rad) once the base is settled at ``base``
+    (px, where the stage stood on the first frame; None: not moved): ``turn``
+    (the first frames' votes), unless the base moved forward, along the
+    curves, by more than ``half_width``: then the median of the held-back
+    frames' own tangents where their curves pass the new base (of those bent
+    at most :data:`BASE_ANGLE_MAX_BEND_DEG`, or of all where none is), less
+    the base tangent in use.
+
+    The votes were measured on fits from the old base, whose first stretch
+    lay in the holder (a glass wider than the tube, which the first frame's
+    skeleton ran into at a slant: φ(0) 15° off the glass's axis), and
+    the spline carries that turn on past the new base."""
+    if base is None or not history:
+        return turn
+    ref = history[-1]
+    cuts = [(abs(r.bend_angle_rad), *_cut_at(r.tracked, base + r.stage_shift))
+            for r, _ in pending if r.ok]
+    if not cuts or np.median([s for _, s, _ in cuts]) <= half_width:
+        return turn
+    little = [phi for bend, _, phi in cuts if bend <= np.radians(BASE_ANGLE_MAX_BEND_DEG)]
+    phis = np.asarray(little or [phi for _, _, phi in cuts])
+    return float(np.median(phis)) - ref.base_angle
 
 
 def _refitted(pending, base: complex | None, turn: float, look: TubeLook | None,
@@ -1362,7 +1425,7 @@ def _refitted(pending, base: complex | None, turn: float, look: TubeLook | None,
             out.append(result)
             continue
         moved = (_moved_base(result.tracked, None if base is None else base + result.stage_shift,
-                             turn) if moves else result.tracked)
+                             turn, look.mean_half_width) if moves else result.tracked)
         if result.base_source and moves:
             shift = result.tracked.length - moved.length
             said = ([f"moved {abs(shift):.1f} px " + ("towards the tip" if shift > 0 else

@@ -152,3 +152,25 @@ def test_roughness_with_joints_is_exact_and_ignores_the_kink():
     assert c @ basis.roughness @ c == pytest.approx(12.0, rel=1e-9)
     # the penalty's scale is that of the same spacing without the joint
     assert basis.roughness_trace == pytest.approx(make_basis(14, 301).roughness_trace)
+
+
+def test_a_curve_cut_back_before_its_base_runs_on_straight_there():
+    z, _ = arc_axis(100 - 300j, 0.4, 500.0, 1 / 200)
+    curve = fit_to_polyline(z, 0.4, n_coef=14)
+    from pipeline.centreline import cut_base
+
+    longer = cut_base(curve, -30.0)
+    assert longer.length == pytest.approx(530.0)
+    assert longer.base_angle == pytest.approx(0.4)
+    assert abs(longer.base - (curve.base - 30.0 * np.exp(0.4j))) < 1e-9
+    # (the spline rounds the curvature's step where the straight meets the arc)
+    assert abs(tip_point(longer) - tip_point(curve)) < 0.1
+    s, pts = resample(longer, 1.0)
+    # straight along the base tangent for the first 30 px, then the arc as it was
+    along = pts[s <= 30.0] - longer.base
+    assert np.abs((along * np.exp(-0.4j)).imag).max() < 0.25
+    s_old, old = resample(curve, 1.0)
+    past = s >= 30.0
+    was = np.interp(s[past] - 30.0, s_old, old.real) + 1j * np.interp(s[past] - 30.0, s_old,
+                                                                       old.imag)
+    assert np.abs(pts[past] - was).max() < 0.2

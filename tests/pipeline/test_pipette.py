@@ -422,3 +422,24 @@ def test_a_bent_tube_s_holder_axis_is_its_line_of_symmetry():
     noise = np.random.default_rng(0).normal(0.5, 0.05, img.shape)
     assert pipette.symmetric_axis(noise, through, 150.0, HW) is None
     assert pipette.holder_axis(through, 150.0, HW, noise) == pipette.axis_angle(through, 150.0)
+
+
+def test_a_holder_s_end_nearer_the_tracked_base_than_two_widths_is_cut():
+    # the tracked structure runs 20 px on into a holder (a glass 1.5 tube widths
+    # wide), under the two tube widths a holder's stretch must have: its
+    # profiles' first one like the tube's lies past those, and the holder's
+    # blurred end before it (the fit ran 23 px on into an independent scene's
+    # glass, the base kept there, 13 deg off)
+    base = 100 - 240j
+    img = tube_image((480, 640), base, 0.0, 300.0, 1e-12, HW, noise=0.005,
+                     pipette_half_width=1.5 * HW)
+    from dataclasses import replace as swap
+
+    results = [swap(r, curve=swap(r.curve, base=base - 20.0))
+               for r in _clamped_tracks(20.0, [0.0, 0.5, 1.0, 2.0], noise=1e-3)]
+    least = pipette.MIN_WIDTHS * 2 * HW
+    assert pipette.static_stretch(results, HW, least) >= least
+    out, note = pipette.drop_holder(results, lambda: img, HW)
+    assert note is not None and "profile stepped there" in note, note
+    assert all(r.ok and abs(r.curve.base - base) < 1.5 for r in out)
+    assert all(r.curve.length == pytest.approx(300.0, abs=1.5) for r in out)

@@ -1,0 +1,89 @@
+"""Moving a tracked curve's base to where the first frames vote it is."""
+
+import numpy as np
+import pytest
+
+from pipeline.centreline import fit_to_polyline, resample, tip_point
+from pipeline.track import _moved_base
+
+
+def _turning_start():
+    """A tracked structure whose first 40 px turn from 65 to 35 deg (a skeleton
+    that came in along a holder's wall), then a tube bent by -100 deg."""
+    s = np.linspace(0.0, 420.0, 4201)
+    phi = np.radians(np.where(s < 40, 65 - 30 * s / 40, 35 - 100 * (s - 40) / 380))
+    z = 100 + 300j + np.concatenate([[0], np.cumsum(np.diff(s) * np.exp(1j * phi[1:]))])
+    return fit_to_polyline(z, np.radians(65.0), n_coef=24)
+
+
+def test_a_base_moved_towards_the_tip_keeps_the_tip_where_it_was():
+    curve = _turning_start()
+    axis = np.exp(1j * curve.base_angle)
+    moved = _moved_base(curve, curve.base + 29.0 * axis)
+    # (sliding the whole curve 29 px along the base axis put the tip 25 px off;
+    # kept to a px, the first span turning from the base tangent as voted to the
+    # curve's there, 22 deg off it: well within a refit's reach)
+    assert abs(tip_point(moved) - tip_point(curve)) < 1.0
+    # its new base lies on the curve, as far along the axis as asked
+    s, z = resample(curve, 0.25)
+    assert np.abs(z - moved.base).min() < 0.3
+    assert np.real((moved.base - curve.base) * np.conj(axis)) == pytest.approx(29.0, abs=0.3)
+    # the base tangent is the one the votes measured against
+    assert moved.base_angle == pytest.approx(curve.base_angle)
+
+
+def test_a_base_moved_back_runs_straight_along_the_axis_and_turns_as_voted():
+    curve = _turning_start()
+    axis = np.exp(1j * curve.base_angle)
+    moved = _moved_base(curve, curve.base - 20.0 * axis, turn=np.radians(1.0))
+    assert moved.length == pytest.approx(curve.length + 20.0)
+    assert abs(moved.base - (curve.base - 20.0 * axis)) < 1e-9
+    assert moved.base_angle == pytest.approx(curve.base_angle + np.radians(1.0))
+    assert abs(tip_point(moved) - tip_point(curve)) < 0.5
+    # only turned, the shape past the first span is the one it was
+    turned = _moved_base(curve, None, turn=np.radians(1.0))
+    assert turned.length == curve.length and turned.base == curve.base
+    assert turned.coef[-1] + turned.base_angle == pytest.approx(curve.coef[-1]
+                                                                  + curve.base_angle)
+
+
+def _held_back(curves):
+    from pipeline.track import FrameTrack
+
+    return [(FrameTrack(k, "ok", c, "fast"), None) for k, c in enumerate(curves)]
+
+
+def test_a_base_settled_past_a_hooked_start_takes_the_tube_s_tangent_there():
+    from pipeline.track import _turn_past_holder
+
+    curve = _turning_start()
+    axis = np.exp(1j * curve.base_angle)
+    # the votes put the base 29 px along the axis, where the tube runs at about
+    # 35 deg (its first 40 px turn from 65): the votes' own turn, measured on
+    # fits from the old base, is not the tube's
+    base = curve.base + 29.0 * axis
+    turn = _turn_past_holder(_held_back([curve, curve]), [curve], base, np.radians(0.2),
+                             half_width=8.0)
+    _, z = resample(curve, 0.25)
+    at = int(np.argmax(np.real((z - curve.base) * np.conj(axis)) >= 29.0))
+    there = np.angle(z[at + 1] - z[at])
+    assert curve.base_angle + turn == pytest.approx(there, abs=np.radians(0.3))
+    assert np.degrees(curve.base_angle + turn) < 50.0
+    # a base moved by less than a half-width keeps the votes' turn
+    near = curve.base + 5.0 * axis
+    assert _turn_past_holder(_held_back([curve]), [curve], near, np.radians(0.2),
+                             half_width=8.0) == np.radians(0.2)
+    # and so does one not moved at all
+    assert _turn_past_holder(_held_back([curve]), [curve], None, np.radians(0.2),
+                             half_width=8.0) == np.radians(0.2)
+
+
+def test_a_short_move_slides_the_curve_a_long_one_cuts_it():
+    curve = _turning_start()
+    axis = np.exp(1j * curve.base_angle)
+    slid = _moved_base(curve, curve.base + 3.0 * axis, slide_px=8.0)
+    assert slid.coef.tolist() == curve.coef.tolist()
+    assert slid.base == pytest.approx(curve.base + 3.0 * axis)
+    assert slid.length == pytest.approx(curve.length - 3.0)
+    cut = _moved_base(curve, curve.base + 29.0 * axis, slide_px=8.0)
+    assert abs(tip_point(cut) - tip_point(curve)) < 1.0
