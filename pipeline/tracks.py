@@ -36,7 +36,7 @@ from .refine import (
     end_step_left_out,
     strip_half_px,
 )
-from .segment import AMBIGUOUS_BASE, detect, held_between
+from .segment import AMBIGUOUS_BASE, BORDER_BASE, detect, held_between
 from .static_mask import MARGIN_PX, static_mask
 from .track import (
     EDGE_SCALES,
@@ -49,7 +49,7 @@ from .track import (
     hold_section_ratio,
     track_frames,
 )
-from .view import cut_by_border
+from .view import base_to_border, cut_by_border
 
 
 def scale_from_length(results: list[FrameTrack], length_um: float) -> tuple[float, int]:
@@ -289,6 +289,15 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
         disc = (complex(col, row), stop.lit_radius / binning.factor)
     results, view_note = cut_by_border(
         results, (rows // binning.factor, cols // binning.factor), disc)
+    border_note = None
+    if (base_hint is None and holder_note is None and disc is None
+            and _base_source(results).startswith(BORDER_BASE)):
+        results, gap = base_to_border(results, (rows // binning.factor, cols // binning.factor),
+                                      _learnt_half_width(results) or 0.0)
+        if gap:
+            border_note = (f"the tube enters from the image's border: its centreline carried "
+                           f"{gap * binning.factor:.1f} px back along its base tangent, from "
+                           "the first whole profile across it to the border")
     results, ratio_note = hold_section_ratio(results)
     results, plug_note = straighten_plugs(results, _learnt_half_width(results),
                                           binning.factor)
@@ -323,6 +332,8 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
         notes.append(step_note)
     if view_note:
         notes.append(view_note)
+    if border_note:
+        notes.append(border_note)
     if still_note:
         notes.append(still_note)
     if holder_note:
@@ -341,9 +352,7 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
         # a video's header count: a truncated file decodes fewer frames, silently
         notes.append(f"the video ended after {len(results)} of the {total} frames its header "
                      "announces (a truncated file, or a header that counts wrong)")
-    # (that of a start that was measured, where one was)
-    sources = [r.base_source for r in sorted(results, key=lambda r: not r.ok) if r.base_source]
-    base_source = sources[0] if sources else "given (--base)" if base_hint else "not found"
+    base_source = _base_source(results) or ("given (--base)" if base_hint else "not found")
     if holder_note:
         base_source = ("where the tube leaves a holder that stood still while the tube bent "
                        f"(first found as: {base_source})")
@@ -548,6 +557,13 @@ def _without_holder(frames, results, det, base_hint, px):
     if half_width is None:
         return results, None
     return drop_holder(results, lambda: as_float(frames.first), half_width, px)
+
+
+def _base_source(results) -> str:
+    """How the base was found: that of a start that was measured, where one
+    was ("" where none says)."""
+    sources = [r.base_source for r in sorted(results, key=lambda r: not r.ok) if r.base_source]
+    return sources[0] if sources else ""
 
 
 def _learnt_half_width(results) -> float | None:

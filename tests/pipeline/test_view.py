@@ -5,6 +5,7 @@ import json
 import cv2
 import numpy as np
 import pandas as pd
+import pytest
 
 from pipeline.accuracy import score_folder
 from pipeline.centreline import Curve
@@ -100,3 +101,50 @@ def test_a_tube_curling_out_of_the_image_and_back_is_not_measured_while_out(tmp_
     assert acc.angle_max <= 2.0
     assert acc.length_error_max_pct <= 1.0
     assert acc.centreline_rms_px <= 0.5
+
+
+def test_a_base_near_the_edge_is_carried_back_to_it_along_its_tangent():
+    from pipeline.centreline import tip_point
+    from pipeline.view import base_to_border
+
+    # entering from the left at -20 deg (y up: heading down-right), its base
+    # 3 px in from the edge at col -0.5; another frame's base 40 px in
+    angle = np.radians(-20.0)
+    near = Curve(base=-0.5 - 100.0j + 3.0 * np.exp(1j * angle),
+                 base_angle=angle, coef=np.linspace(0.0, 0.6, 8), length=200.0)
+    far = Curve(base=40.0 - 100.0j, base_angle=angle, coef=np.zeros(8), length=200.0)
+    results = [FrameTrack(0, "ok", near, "fast", fit=near),
+               FrameTrack(1, "ok", far, "fast"), FrameTrack(2, "tube not found", None, "")]
+    out, gap = base_to_border(results, (300, 400), half_width=8.0)
+    assert gap == pytest.approx(3.0)
+    moved = out[0].curve
+    assert moved.base.real == pytest.approx(-0.5)
+    assert moved.base.imag == pytest.approx(-100.0)
+    assert moved.length == pytest.approx(203.0)
+    assert moved.base_angle == pytest.approx(angle)
+    assert abs(tip_point(moved) - tip_point(near)) < 0.1
+    assert out[0].fit.length == pytest.approx(203.0)
+    assert out[1] is results[1] and out[2] is results[2]
+
+
+def test_a_tube_entering_from_the_border_at_a_slant_starts_at_the_edge(tmp_path):
+    from tests.pipeline.synthetic import tube_image
+
+    # the tube enters at -25 deg from outside the left edge; no holder
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    angle, hw = np.radians(-25.0), 8.0
+    start = -60.0 * np.exp(1j * angle) - 200j      # outside the frame
+    for k in range(6):
+        kappa = 1.2 * k / 5 / 420.0
+        img = tube_image((480, 640), start, angle, 420.0, kappa + 1e-12, hw, noise=0.01, seed=k)
+        cv2.imwrite(str(folder / f"f{k}.png"), (img * 255).round().astype(np.uint8))
+    track_video(folder, tmp_path / "out", um_per_px=1.0)
+    t = pd.read_csv(tmp_path / "out" / "tracks.csv")
+    assert (t.status == "ok").all()
+    # where the straight start crosses col -0.5
+    row = -(start.imag + np.tan(angle) * (-0.5 - start.real))
+    assert np.abs(t.base_x_um + 0.5).max() < 0.3
+    assert np.abs(-t.base_y_um - row).max() < 0.5
+    run = json.loads((tmp_path / "out" / "run.json").read_text())
+    assert any("enters from the image's border" in n for n in run["left_out_and_why"])
