@@ -678,6 +678,7 @@ def _split_point(width: np.ndarray, trim: int = 0) -> tuple[int, float]:
 
 #: The base found where a narrower pipette's width steps up to the tube's.
 PIPETTE_STEP = "pipette width step"
+HOLDER_STEP = "holder width step (a holder wider than the tube)"
 #: Base sources that a single frame cannot back up (see :mod:`pipeline.motion`).
 AMBIGUOUS_BASE = "skeleton end nearest the border"
 #: The base found where the structure meets the image border, no holder seen.
@@ -872,7 +873,7 @@ def _detect_in(mask: np.ndarray, f: int, base_hint, base_end, *,
         source = PIPETTE_STEP
     elif (ratio < 1 / HOLDER_RATIO and split > min_pipette
           and _touches_border(path_rc[0], shape, margin)):
-        source = "holder width step (a holder wider than the tube)"
+        source = HOLDER_STEP
     elif ambiguous:
         split = 0
         source = AMBIGUOUS_BASE

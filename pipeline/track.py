@@ -98,7 +98,7 @@ from .refine import (
     self_contact,
     widths_at,
 )
-from .segment import BORDER_BASE, detect
+from .segment import BORDER_BASE, HOLDER_STEP, PIPETTE_STEP, detect
 
 #: :func:`pipeline.refine.antisymmetry` of the first frame across the tube
 #: found, above which it is taken for a relief (its edges are looked for only
@@ -175,6 +175,9 @@ BASE_ANGLE_AGREE_DEG = 0.5
 #: A base tangent turned by less than this (deg) is left as it is (the
 #: pipette's axis, measured on each of the first frames, varies by ~0.01°).
 BASE_TURN_MIN_DEG = 0.02
+#: A base found at a width step is looked for again this many half-widths
+#: either side of it, by the profiles across the tube (:func:`_holder_end`).
+HOLDER_END_HW = 4.0
 #: Bend (deg) from which the tracker looks for the section joints, where the
 #: curvature steps, when they are not given; it looks again each time the bend
 #: has grown by :data:`JOINT_CHECK_GROWTH` (a step shows more the more it bends).
@@ -655,6 +658,12 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
         r = replace(r, curve=locate_base(image, r.curve, look, reach=reach))
         if source == BORDER_BASE and abs(r.curve.base - start) > 2.0 * hw0:
             source = "where the tube's edges begin (the mask ran on into a pipette)"
+        elif source in (PIPETTE_STEP, HOLDER_STEP) and r.curve.base == start:
+            held = _holder_end(image, r.curve, look.mean_half_width)
+            if held is not None:
+                r = replace(r, curve=held)
+                source = (f"{source}; then moved to where the profiles across it become the "
+                          "tube's (a holder whose own edges are as far apart as the tube's)")
     r = _base_tangent_fit(image, r.curve, look, tol, r)
     r = refine(image, r.curve, look, iterations=4, tol_px=tol)
     if joints is None:
@@ -681,6 +690,30 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
         turned = _moved_base(r.curve, None, direction - r.curve.base_angle)
         r = refine(image, replace(turned, base=on_axis), look, iterations=4, tol_px=tol)
     return r, look, source
+
+
+def _holder_end(image: np.ndarray, curve: Curve, half_width: float) -> Curve | None:
+    """``curve`` from where, along its base axis, the profiles across it
+    become the tube's (:func:`pipeline.pipette.profile_change`, over
+    :data:`HOLDER_END_HW` half-widths either side of its base), or None
+    where they do not step there, or step within a px of its base.
+
+    For a base found at a width step whose edge pairs cannot place it: a
+    thick-walled holder whose lumen is as wide as the tube shows the tube's
+    edge pair behind the base as strongly as past it
+    (:func:`pipeline.refine.locate_base` leaves it where it is), and the
+    mask's width changes over a half-width or so about the holder's mouth (an
+    independent scene: the base 12 px past the mouth)."""
+    from .pipette import MIN_CHANGE, profile_change
+
+    reach = HOLDER_END_HW * half_width
+    if curve.length < 4.0 * reach:
+        return None
+    back = cut_base(curve, -reach, curve.base_angle)
+    s, change = profile_change(image, back, half_width, 2.0 * reach)
+    if change < MIN_CHANGE or abs(s - reach) <= 1.0:
+        return None
+    return cut_base(back, s, curve.base_angle)
 
 
 def _base_tangent_fit(image: np.ndarray, curve: Curve, look: TubeLook, tol: float,

@@ -443,3 +443,26 @@ def test_a_holder_s_end_nearer_the_tracked_base_than_two_widths_is_cut():
     assert note is not None and "profile stepped there" in note, note
     assert all(r.ok and abs(r.curve.base - base) < 1.5 for r in out)
     assert all(r.curve.length == pytest.approx(300.0, abs=1.5) for r in out)
+
+
+def test_a_holder_whose_lumen_is_the_tube_s_width_ends_where_its_walls_do():
+    from pipeline.track import _holder_end
+
+    # the tube runs on from the border inside a glass whose walls stand two of
+    # its half-widths off the axis: its edge pair shows behind the base as past
+    # it (so edge pairs cannot place the base); the base was put 12 px past the
+    # glass's mouth, as the mask's width step put an independent scene's
+    mouth = BASE
+    img = tube_image((480, 640), 639 - 240j, ANGLE, LENGTH + 219, 1e-12, HW, noise=0.01)
+    img = _capillary(img, 2 * HW, 2 * HW, HW, base=mouth, line=0.5)
+    late = Curve(mouth + 12 * np.exp(1j * ANGLE), ANGLE, LENGTH - 12, np.zeros(8))
+    found = _holder_end(img, late, HW)
+    assert found is not None
+    assert abs(found.base - mouth) < 1.0
+    assert found.length == pytest.approx(LENGTH, abs=1.0)
+    assert found.base_angle == pytest.approx(ANGLE)
+    assert abs(tip_point(found) - tip_point(late)) < 0.5
+    # a base at the mouth stays; a tube with no glass has nothing to move to
+    assert _holder_end(img, Curve(mouth, ANGLE, LENGTH, np.zeros(8)), HW) is None
+    bare = tube_image((480, 640), 639 - 240j, ANGLE, LENGTH + 219, 1e-12, HW, noise=0.01)
+    assert _holder_end(bare, late, HW) is None
