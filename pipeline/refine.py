@@ -74,6 +74,15 @@ END_STEP_LEAVE_OUT_MAX_PX = 0.5
 #: sample 1, the report's stress_no_pipette and stress_fluorescent), angle
 #: medians 0.16/0.48/0.07 deg at 0.5; 0.32/0.49/0.26 at 0.3; 0.17/0.80/0.11 at 0.7.
 END_CLEAR_HW = 0.5
+#: A frame's lines along the tip tangent tell the end's shape
+#: (:attr:`Refined.cap_shape`) where they fit a flat face or a share of a round
+#: cap to this many half-widths (RMS), the share within this range (a tube
+#: curled over itself: 1.4-1.9, its tip lying against its body).
+CAP_FIT_HW = 0.12
+CAP_SHARES = (-0.5, 1.3)
+#: On a round cap (:attr:`TubeLook.cap`), the side edges within this many
+#: half-widths of its apex are left out of the fits.
+CAP_CLEAR_HW = 0.6
 #: The fraction of the profiles past a base step found that must show the
 #: tube's edge pair for the step to stand (:func:`locate_base`).
 BASE_STEP_VALID = 0.5
@@ -230,6 +239,13 @@ class TubeLook:
         that told it, px (along the curve's left normal): reported only (a
         learned value taken off them instead had turned the tip 0.1-0.5 deg
         the wrong way on tubes whose end was merely noisy).
+    cap : float or None
+        The tube's end as a share of a round cap of its own radius: 0 a flat
+        (cut) end face, 1 a hemisphere (None: not known yet, fits measure it,
+        see :attr:`Refined.cap_shape`). The lines along the tip tangent that
+        find the end (:func:`_tip_offset`) lie beside the axis, and beside it
+        a round cap ends short of its apex by ``r − √(r² − y²)``: the end
+        is put that much (their median) beyond the lines' median end.
     """
 
     polarity: int
@@ -241,6 +257,7 @@ class TubeLook:
     end_step_px: float | None = 0.0
     end_step_offset: float = 0.0
     strip_lines: int = STRIP_LINES
+    cap: float | None = None
 
     @property
     def strip_half_px(self) -> float:
@@ -425,6 +442,11 @@ class Refined:
         farther off alone fit (px, along the left normal) and its weight;
         what a straight plug's length is fitted to
         (:func:`pipeline.plug.fitted_length`).
+    cap_shape : float
+        The end's shape the lines along the tip tangent saw on the fit's last
+        round: the share of a round cap of the tube's radius (0 flat, 1 a
+        hemisphere; :attr:`TubeLook.cap`) that fits their ends best (NaN
+        where too few lines found the end).
     """
 
     curve: Curve
@@ -447,6 +469,7 @@ class Refined:
     length_held: bool = False
     told_offset: float = float("nan")
     end_profile: np.ndarray | None = None
+    cap_shape: float = float("nan")
 
     @property
     def valid_fraction(self) -> float:
@@ -599,6 +622,9 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
     shift = _crop_shift(origin)
     basis = basis_of(curve)
     clear = max(2.0, END_CLEAR_HW * hw) if look.clears_end else 2.0
+    # (a round cap's side edges close in towards its apex: 10 % narrower a
+    # little over half a half-width before it)
+    clear = max(clear, CAP_CLEAR_HW * hw * (look.cap or 0.0))
     idx, offsets, step = _profile_layout(curve, look, basis.n_grid, window, width_tol, clear)
     u = basis.u[idx]
     hw_u = look.half_width_at(u)
@@ -621,6 +647,7 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
         hold = turns[1] / spans[1] - tip_ratio * turns[0] / spans[0]
         in_last = u > curve.joints[-1]
     tip_found = False
+    cap_shape = np.nan
     edges = None
     tip_correction = None
     last_section = None
@@ -685,8 +712,9 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
                 a_rows[0], b_rows[0] = _own_offset(a_rows[0], b_rows[0], weights, zone)
         tip_found = False
         if fit_length:
-            tip_off, tip_found = _tip_offset(image, smp, shift, look, window, step,
-                                             nearest=avoid_contact, tip_window=tip_window)
+            tip_off, tip_found, cap_shape = _tip_offset(
+                image, smp, shift, look, window, step, nearest=avoid_contact,
+                tip_window=tip_window)
             if tip_found:
                 # the end sets the length only (ΔL = how far the tube's end lies
                 # beyond the curve's, along the tangent); the shape is the side
@@ -804,7 +832,8 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
                & (-at.imag >= reach) & (-at.imag <= image.shape[0] - 1 - reach))
     return Refined(curve, u, width, edges.valid, rms, tip_found, it, strength, ~dropped, mids,
                    tip_correction, noise, last_section, end_offset, end_steps, in_view=in_view,
-                   last_move_px=float(move), told_offset=told_offset, end_profile=end_profile)
+                   last_move_px=float(move), told_offset=told_offset, end_profile=end_profile,
+                   cap_shape=cap_shape)
 
 
 def end_step_left_out(curve: Curve, step_px: float, offset_px: float) -> bool:
@@ -1084,7 +1113,9 @@ def relief_shear(theta: np.ndarray, signed: np.ndarray) -> float | None:
 
 def _tip_offset(image, smp, shift, look: TubeLook, window: float, step: float, *,
                 nearest: bool = False, tip_window: float | None = None):
-    """Offset of the tube's end from the curve's end along the tip tangent, px."""
+    """Offset of the tube's end (its apex) from the curve's end along the tip
+    tangent, px; whether it was found; and the end's shape the lines saw
+    (:attr:`Refined.cap_shape`)."""
     hw = look.mean_half_width
     tangent = smp.tangent[-1]
     normal = 1j * tangent
@@ -1092,6 +1123,8 @@ def _tip_offset(image, smp, shift, look: TubeLook, window: float, step: float, *
     relief = look.polarity == 0
     lateral = np.array([-0.85, -0.7, -0.4, 0.0, 0.4, 0.7, 0.85] if relief
                        else [-0.7, -0.4, 0.0, 0.4, 0.7]) * hw
+    # how far short of its apex a round cap of the tube's radius ends on each line
+    short = hw - np.sqrt(np.maximum(hw**2 - lateral**2, 0.0))
     starts = smp.z[-1] - shift + normal * lateral
     reach = window + 0.5 * hw if tip_window is None else tip_window
     half = reach + 0.5 * hw + 3.0
@@ -1102,18 +1135,26 @@ def _tip_offset(image, smp, shift, look: TubeLook, window: float, step: float, *
                              nearest=nearest)
     good = np.isfinite(off) & (strength > 0.25 * look.strength)
     if good.sum() < 2:
-        return 0.0, False
+        return 0.0, False, np.nan
+    cap_shape = _cap_shape(off[good], short[good], hw)
+    # (a round cap's apex lies beyond the lines' median end by the median of
+    # how far short each line ends: added to that median, not to each line
+    # first, which a tip tangent turned off the tube's amplified into a
+    # runaway where the outer lines left the cap through its side)
+    to_apex = (look.cap or 0.0) * float(np.median(short[good]))
     if relief:
         # an end face square to the shear fades, and the lines across the lumen
         # then stop at the lumen's end (a sealed tip's plug); the lines within
         # the walls, where the walls' strong relief stops, reach the end: the
         # median of the three lines whose end steps are strongest
         strongest = np.argsort(np.where(good, strength, -np.inf))[::-1][:3]
-        coarse = float(np.median(off[strongest[good[strongest]]]))
+        strongest = strongest[good[strongest]]
+        coarse = float(np.median(off[strongest]))
+        to_apex = (look.cap or 0.0) * float(np.median(short[strongest]))
     else:
         coarse = float(np.median(off[good]))
     if look.smooth_px <= TIP_FOCUS_PX:
-        return coarse, True
+        return coarse + to_apex, True, cap_shape
     # edge focusing (coarse to fine): the wide filter a noisy frame needs to find
     # the end also moves it, away from a step of the other sign close by (a
     # sealed tip's plug, brighter or darker than the hollow tube: +1 to 2 px on a
@@ -1129,7 +1170,27 @@ def _tip_offset(image, smp, shift, look: TubeLook, window: float, step: float, *
     mean = np.where(seen > 0, np.nansum(prof, axis=0) / np.maximum(seen, 1), np.nan)
     fine, _ = end_edge(mean[None, :], step, polarity=look.polarity, window=reach,
                        smooth_px=TIP_FOCUS_PX, nearest=True)
-    return coarse + (float(fine[0]) if np.isfinite(fine[0]) else 0.0), True
+    return (coarse + (float(fine[0]) if np.isfinite(fine[0]) else 0.0) + to_apex, True,
+            cap_shape)
+
+
+def _cap_shape(off: np.ndarray, short: np.ndarray, half_width: float) -> float:
+    """The share of a round cap that the lines' ends ``off`` (px along the
+    tip tangent) fit best, each ``short`` (px) short of the apex on a full
+    one: least squares of ``off = apex − share·short``. NaN where the lines
+    that found the end do not span both the axis and the walls, where they do
+    not fit that pattern (:data:`CAP_FIT_HW`: a tip that lies against the
+    tube's own body, or a tip tangent turned off the tube's, ends them
+    unevenly), or where the share lies outside :data:`CAP_SHARES`."""
+    if off.size < 3 or np.ptp(short) < 0.1 * half_width:
+        return np.nan
+    design = np.c_[np.ones(off.size), -short]
+    coef, *_ = np.linalg.lstsq(design, off, rcond=None)
+    misfit = float(np.sqrt(np.mean((off - design @ coef) ** 2)))
+    share = float(coef[1])
+    if misfit > CAP_FIT_HW * half_width or not CAP_SHARES[0] <= share <= CAP_SHARES[1]:
+        return np.nan
+    return share
 
 
 def contact_mask(z: np.ndarray, idx: np.ndarray, *, reach: float, gap: float,

@@ -267,6 +267,11 @@ BASE_SMOOTHING = 0.1
 #: the full weight, a blurred MJPG scene lost its first frame (the fit bent 8 px
 #: off at the base).
 SKELETON_SMOOTHING = BASE_SMOOTHING / STRIP_LINES
+#: The end's shape (a flat face or a round cap, :class:`_CapVotes`) is set
+#: from this many frames.
+CAP_VOTE_FRAMES = 4
+#: A share of a round cap below this is a flat end's (:class:`_CapVotes`).
+CAP_MIN = 0.5
 #: The side edges near the tube's end are left out (:class:`_EndVotes`) once at
 #: least this many frames ...
 END_VOTE_FRAMES = 4
@@ -433,6 +438,11 @@ class FrameTrack:
         shift this frame's base followed (0 until the drift is followed; the
         last measured on frames not measured; interpolated on the frames held
         back for the base's vote).
+    cap_shape : float
+        :attr:`pipeline.refine.Refined.cap_shape` of the fit.
+    cap : float or None
+        The look's :attr:`pipeline.refine.TubeLook.cap` once this frame was
+        fitted (None: not told yet).
     """
 
     frame: int
@@ -459,6 +469,8 @@ class FrameTrack:
     told_offset: float = float("nan")
     end_profile: np.ndarray | None = None
     stage_shift: complex = 0j
+    cap_shape: float = float("nan")
+    cap: float | None = None
 
     def moved(self, step: complex) -> FrameTrack:
         """This frame with its curves moved by ``step`` (px, y up)."""
@@ -960,6 +972,7 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
     shear_votes = _ShearVotes()
     # how far the edges near the tube's end sit off the rest's line, until that tells
     end_votes = _EndVotes()
+    cap_votes = _CapVotes()
     end_step_votes = _EndStepVotes()
     # the edges' residual on the last frames measured (not at crossings)
     residuals: list[float] = []
@@ -1056,9 +1069,10 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
                 residuals = (residuals + [result.residual_px])[-RESIDUAL_JUMP_FRAMES:]
                 lengths = (lengths + [result.curve.length])[-RESIDUAL_JUMP_FRAMES:]
             lost_run = 0
-            result = replace(result, end_clear=look.clears_end)
+            result = replace(result, end_clear=look.clears_end, cap=look.cap)
             if not result.crossing:
                 look = end_votes.add(result.end_offset, look)
+                look = cap_votes.add(result.cap_shape, look)
                 look = end_step_votes.add(result.end_steps, look, result.bend_angle_rad)
             if look.end_step_px:
                 result = replace(result, end_step=_told_step(look))
@@ -1171,6 +1185,34 @@ class _EndVotes:
         if mean >= END_OFFSET_MIN_PX and mean >= END_OFFSET_Z * se:
             return replace(look, end_clear=True)
         return look
+
+
+@dataclass
+class _CapVotes:
+    """The end's shape the first frames' fits saw (:attr:`FrameTrack.cap_shape`),
+    until :data:`CAP_VOTE_FRAMES` have: then the look's :attr:`TubeLook.cap`
+    is their median, within [0, 1].
+
+    A round cap (an independent renderer's tubes: the lines 0.4 and 0.7
+    half-widths off the axis ended 0.08 and 0.28 of them short of the apex,
+    a hemisphere's 0.083 and 0.286) put the tip 0.7-2 px short of its apex,
+    and the bend short by the curvature times that (up to 1.4 deg on a
+    22 px tube curled 320 deg); a flat end face, this package's renderer's,
+    shows no such pattern."""
+
+    shares: list[float] = field(default_factory=list)
+
+    def add(self, share: float, look: TubeLook) -> TubeLook:
+        """``look``, with its end's shape set once the frames so far tell it."""
+        if look.cap is not None or not np.isfinite(share):
+            return look
+        self.shares.append(share)
+        if len(self.shares) < CAP_VOTE_FRAMES:
+            return look
+        share = float(np.median(self.shares))
+        # (a flat end's corners, blurred, end the lines beside the axis a little
+        # early too: shares of 0.07-0.26 on this package's blurred scenes)
+        return replace(look, cap=float(min(share, 1.0)) if share >= CAP_MIN else 0.0)
 
 
 @dataclass
@@ -1440,7 +1482,8 @@ def _refitted(pending, base: complex | None, turn: float, look: TubeLook | None,
               settings: TrackSettings, restaged: dict | None = None) -> list[FrameTrack]:
     """The held-back results, each measured frame refitted from its base moved
     to ``base`` (where the stage stood on the first frame: each frame's own
-    stage shift is added) and its base tangent turned by ``turn``, and with its end's
+    stage shift is added) and its base tangent turned by ``turn``, to its end's
+    round cap if the frames told one (:class:`_CapVotes`), and with its end's
     sideways step if the frames after it told one (:class:`_EndStepVotes`;
     kept as it was if that fit fails the checks); the frame that found the
     base says it was moved. The frames ``restaged`` (moved where a drifting
@@ -1450,10 +1493,12 @@ def _refitted(pending, base: complex | None, turn: float, look: TubeLook | None,
     restaged = restaged or {}
     out = []
     moves = base is not None or bool(turn)
+    # (a round cap told after the first frames: theirs were fitted short of it)
+    capped = look is not None and bool(look.cap)
     for result, image in pending:
         stepped = (look is not None and bool(look.end_step_px) and result.ok
                    and result.end_step is None)
-        if not result.ok or look is None or not (moves or stepped
+        if not result.ok or look is None or not (moves or stepped or capped
                                                  or result.frame in restaged):
             out.append(result)
             continue
@@ -1588,7 +1633,8 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
                            fit=r.curve if status == "ok" else None,
                            last_section=r.last_section if status == "ok" else None,
                            end_offset=r.end_offset, end_steps=r.end_steps,
-                           told_offset=r.told_offset, end_profile=r.end_profile), look)
+                           told_offset=r.told_offset, end_profile=r.end_profile,
+                           cap_shape=r.cap_shape), look)
     hw = look.mean_half_width
     pred = _predict(history)
     last_length = history[-1].length
@@ -1746,7 +1792,8 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
     return FrameTrack(index, "ok", _reported(r), stage, r.residual_px, r.valid_fraction, work,
                       crossing=crossing, fit=r.curve, last_section=r.last_section,
                       end_offset=r.end_offset, end_steps=r.end_steps,
-                      told_offset=r.told_offset, end_profile=r.end_profile)
+                      told_offset=r.told_offset, end_profile=r.end_profile,
+                      cap_shape=r.cap_shape)
 
 
 def _reported(r: Refined) -> Curve:

@@ -326,6 +326,7 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
     if strips_note:
         notes.append(strips_note)
     notes.append(_end_note(results))
+    notes.append(_cap_note(results))
     notes.append(_drift_note(results, base_hint is not None))
     step_note = _end_step_note(results)
     if step_note:
@@ -743,6 +744,19 @@ def _drift_note(results, base_given: bool) -> str:
     return (f"stage drift: none followed (the base held {held}: the holder's region did not "
             f"move by {FOLLOW_MIN_PX:g} px on three frames in a row, or no holder showed, or "
             "the tube entered from the frame's border)")
+
+
+def _cap_note(results) -> str:
+    """What the tube's end was taken for: a flat face or a round cap."""
+    told = [r.cap for r in results if r.ok and r.cap is not None]
+    if not told:
+        return "tube's end: taken for a flat face (too few frames to tell its shape)"
+    if not told[-1]:
+        return ("tube's end: a flat face (the lines beside its axis ended where the axis's "
+                "did)")
+    return (f"tube's end: a round cap ({told[-1]:.2f} of a hemisphere of its radius, from "
+            "where the lines beside its axis ended): the tip put at its apex, the side "
+            "edges on the cap left out")
 
 
 def _end_note(results) -> str:

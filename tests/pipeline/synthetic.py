@@ -43,18 +43,26 @@ def _signed_position(zp, base, angle, length, kappa):
 
 def tube_image(shape, base, angle, length, kappa, half_width, *, polarity=-1,
                background=0.8, contrast=0.35, edge_px=0.7, noise=0.0, seed=0,
-               pipette_half_width=None, pipette_contrast=0.5):
+               pipette_half_width=None, pipette_contrast=0.5, round_cap=False):
     """A float32 frame of one tube (and optionally a coaxial pipette behind its base).
 
     The tube is ``half_width`` wide on each side of the axis, with soft (erf)
     edges of scale ``edge_px``; transmitted-light looks have ``polarity`` −1.
-    The pipette's contrast is ``pipette_contrast`` times the tube's.
+    The pipette's contrast is ``pipette_contrast`` times the tube's. Its end
+    is a flat face at ``length``, or with ``round_cap`` a hemisphere of its
+    radius whose apex lies there.
     """
     rows, cols = shape
     rr, cc = np.mgrid[0:rows, 0:cols]
     zp = cc - 1j * rr
     s, d = _signed_position(zp, base, angle, length, kappa)
     inside_len = 0.5 * (1 + erf(s / edge_px)) * 0.5 * (1 + erf((length - s) / edge_px))
+    if round_cap:
+        # the axis ends a radius short of the apex; past that, the distance to its end
+        z, _ = arc_axis(base, angle, length - half_width, kappa, n=2)
+        beyond = s > length - half_width
+        d = np.where(beyond, np.abs(zp - z[-1]), d)
+        inside_len = 0.5 * (1 + erf(s / edge_px))
     across = 0.5 * (1 + erf((half_width - np.abs(d)) / edge_px))
     tube = across * inside_len
     img = np.full(shape, background, dtype=float)

@@ -2,7 +2,9 @@
 line, and left out once the frames show that they sit off it."""
 import json
 
+import cv2
 import numpy as np
+import pandas as pd
 import pytest
 
 from pipeline import schema as S
@@ -111,3 +113,51 @@ def test_a_dark_rimmed_tube_keeps_its_end_edges(tmp_path):
     acc, note = _run(render_scene(scene, tmp_path / "scene", fmt="png"), tmp_path / "out")
     assert note.startswith("side edges kept up to 2 px"), note
     assert acc.angle_median < 0.3
+
+
+def test_the_lines_ends_tell_a_round_cap_from_a_flat_end():
+    from pipeline.refine import _cap_shape
+
+    hw = 10.0
+    y = np.array([-0.7, -0.4, 0.0, 0.4, 0.7]) * hw
+    short = hw - np.sqrt(hw**2 - y**2)
+    assert _cap_shape(3.0 - short, short, hw) == pytest.approx(1.0)
+    assert _cap_shape(np.full(5, 3.0), short, hw) == pytest.approx(0.0, abs=1e-12)
+    assert _cap_shape(3.0 - 0.5 * short, short, hw) == pytest.approx(0.5)
+    # the axis alone (or the walls alone) cannot tell
+    assert np.isnan(_cap_shape(np.array([1.0, 1.0]), short[[1, 3]], hw))
+    assert np.isnan(_cap_shape(np.full(2, 1.0), short[[0, 4]], hw))
+
+
+@pytest.mark.parametrize("round_cap", [False, True])
+def test_a_round_capped_tube_is_tracked_to_its_apex(tmp_path, round_cap, monkeypatch):
+    import pipeline.track as track
+
+    # a tube 14 px wide curling to 250 deg, its end a hemisphere (or flat): the
+    # lines beside the axis that find the end stop short of a round cap's apex
+    # (by 0.08 and 0.29 of the half-width), and the median of them had put the
+    # tip short by as much and the bend short by the curvature times that
+    base, angle, length, hw = 560 - 420j, np.pi, 300.0, 7.0
+    turns = np.radians(np.linspace(0.0, 250.0, 8))
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    for k, turn in enumerate(turns):
+        img = tube_image((480, 640), base, angle, length, -turn / length + 1e-12, hw,
+                         noise=0.01, seed=k, round_cap=round_cap)
+        cv2.imwrite(str(folder / f"f{k}.png"), (img * 255).round().astype(np.uint8))
+
+    def tracked(out):
+        track_video(folder, out, um_per_px=1.0)
+        t = pd.read_csv(out / "tracks.csv")
+        assert (t.status == "ok").all()
+        return t.length_um.to_numpy(), t.bend_angle_deg.to_numpy() + np.degrees(turns)
+
+    lengths, errors = tracked(tmp_path / "out")
+    assert np.abs(lengths - length).max() < 0.5
+    assert np.abs(errors).max() < 1.1
+    if round_cap:
+        # not told, the tip falls short, and the bend with it
+        monkeypatch.setattr(track, "CAP_MIN", np.inf)
+        short, untold = tracked(tmp_path / "flat")
+        assert np.median(length - short) > 0.6
+        assert np.abs(untold).mean() > np.abs(errors).mean()
