@@ -716,14 +716,17 @@ def _holder_end(image: np.ndarray, curve: Curve, half_width: float) -> Curve | N
     (:func:`pipeline.refine.locate_base` leaves it where it is), and the
     mask's width changes over a half-width or so about the holder's mouth (an
     independent scene: the base 12 px past the mouth)."""
-    from .pipette import MIN_CHANGE, profile_change
+    from .pipette import HOLDER_CHI2, profile_change
 
     reach = HOLDER_END_HW * half_width
     if curve.length < 4.0 * reach:
         return None
     back = cut_base(curve, -reach, curve.base_angle)
     s, change = profile_change(image, back, half_width, 2.0 * reach)
-    if change < MIN_CHANGE or abs(s - reach) <= 1.0:
+    # (the change a holder's profiles must show to be cut off the tube, where
+    # the detector saw none, is more than the frames need to place one it saw:
+    # a relief's glass, 6x its scatter)
+    if change < HOLDER_CHI2 or abs(s - reach) <= 1.0:
         return None
     return cut_base(back, s, curve.base_angle)
 
