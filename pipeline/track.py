@@ -1194,7 +1194,7 @@ class _EndVotes:
 class _CapVotes:
     """The end's shape the first frames' fits saw (:attr:`FrameTrack.cap_shape`),
     until :data:`CAP_VOTE_FRAMES` have: then the look's :attr:`TubeLook.cap`
-    is their median, within [0, 1].
+    is their median, at most 1 (0 where it is under :data:`CAP_MIN`).
 
     A round cap (an independent renderer's tubes: the lines 0.4 and 0.7
     half-widths off the axis ended 0.08 and 0.28 of them short of the apex,
