@@ -1137,22 +1137,20 @@ def _tip_offset(image, smp, shift, look: TubeLook, window: float, step: float, *
     if good.sum() < 2:
         return 0.0, False, np.nan
     cap_shape = _cap_shape(off[good], short[good], hw)
-    # (a round cap's apex lies beyond the lines' median end by the median of
-    # how far short each line ends: added to that median, not to each line
-    # first, which a tip tangent turned off the tube's amplified into a
-    # runaway where the outer lines left the cap through its side)
-    to_apex = (look.cap or 0.0) * float(np.median(short[good]))
+    used = np.flatnonzero(good)
     if relief:
         # an end face square to the shear fades, and the lines across the lumen
         # then stop at the lumen's end (a sealed tip's plug); the lines within
         # the walls, where the walls' strong relief stops, reach the end: the
         # median of the three lines whose end steps are strongest
         strongest = np.argsort(np.where(good, strength, -np.inf))[::-1][:3]
-        strongest = strongest[good[strongest]]
-        coarse = float(np.median(off[strongest]))
-        to_apex = (look.cap or 0.0) * float(np.median(short[strongest]))
-    else:
-        coarse = float(np.median(off[good]))
+        used = strongest[good[strongest]]
+    coarse = float(np.median(off[used]))
+    # (a round cap's apex lies beyond the lines' median end by the median of
+    # how far short each line ends: added to that median, not to each line
+    # first, which a tip tangent turned off the tube's amplified into a
+    # runaway where the outer lines left the cap through its side)
+    to_apex = (look.cap or 0.0) * float(np.median(short[used]))
     if look.smooth_px <= TIP_FOCUS_PX:
         return coarse + to_apex, True, cap_shape
     # edge focusing (coarse to fine): the wide filter a noisy frame needs to find

@@ -287,13 +287,12 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
     if stop:
         col, row = binning.to_binned(stop.centre.real, stop.centre.imag)
         disc = (complex(col, row), stop.lit_radius / binning.factor)
-    results, view_note = cut_by_border(
-        results, (rows // binning.factor, cols // binning.factor), disc)
+    view = (rows // binning.factor, cols // binning.factor)
+    results, view_note = cut_by_border(results, view, disc)
     border_note = None
     if (base_hint is None and holder_note is None and disc is None
             and _base_source(results).startswith(BORDER_BASE)):
-        results, gap = base_to_border(results, (rows // binning.factor, cols // binning.factor),
-                                      _learnt_half_width(results) or 0.0)
+        results, gap = base_to_border(results, view, _learnt_half_width(results) or 0.0)
         if gap:
             border_note = (f"the tube enters from the image's border: its centreline carried "
                            f"{gap * binning.factor:.1f} px back along its base tangent, from "
