@@ -178,6 +178,9 @@ MAD_TO_SD = float(1.0 / ndtri(0.75))
 #: medians that moved by > 0.02°, 9 fell (v05 0.65° → 0.49°, v03 1.36° → 1.01°)
 #: and 7 rose (at most 0.07°), one scene more meets every target.
 TIP_FOCUS_PX = 0.8
+#: Half the span, in half-widths, of the lines whose mean finds a noisy tube's end
+#: (:func:`_pooled_end`): the lines :func:`_tip_offset` looks along, as one strip.
+TIP_POOL_HW = 0.7
 #: The section before must turn at least this much (rad) for a ratio to it to
 #: mean anything.
 TIP_RATIO_MIN_TURN = np.radians(10.0)
@@ -1151,6 +1154,12 @@ def _tip_offset(image, smp, shift, look: TubeLook, window: float, step: float, *
     # first, which a tip tangent turned off the tube's amplified into a
     # runaway where the outer lines left the cap through its side)
     to_apex = (look.cap or 0.0) * float(np.median(short[used]))
+    lines = starts[good]
+    if look.strip_lines > STRIP_LINES and not relief:
+        pooled = _pooled_end(image, smp.z[-1] - shift, tangent, look, reach, offsets, step,
+                             nearest)
+        if pooled is not None:
+            (coarse, lines), to_apex = pooled, 0.0
     if look.smooth_px <= TIP_FOCUS_PX:
         return coarse + to_apex, True, cap_shape
     # edge focusing (coarse to fine): the wide filter a noisy frame needs to find
@@ -1162,14 +1171,40 @@ def _tip_offset(image, smp, shift, look: TubeLook, window: float, step: float, *
     reach = look.smooth_px + 1.0
     half = reach + 3.0 * TIP_FOCUS_PX
     offsets = np.arange(-np.ceil(half / step), np.ceil(half / step) + 1) * step
-    prof = sample_lines(image, starts[good] + tangent * coarse,
-                        np.full(int(good.sum()), tangent), offsets)
+    prof = sample_lines(image, lines + tangent * coarse, np.full(lines.size, tangent), offsets)
     seen = np.isfinite(prof).sum(axis=0)
     mean = np.where(seen > 0, np.nansum(prof, axis=0) / np.maximum(seen, 1), np.nan)
     fine, _ = end_edge(mean[None, :], step, polarity=look.polarity, window=reach,
                        smooth_px=TIP_FOCUS_PX, nearest=True)
     return (coarse + (float(fine[0]) if np.isfinite(fine[0]) else 0.0) + to_apex, True,
             cap_shape)
+
+
+def _pooled_end(image, end, tangent, look: TubeLook, reach: float, offsets, step: float,
+                nearest: bool) -> tuple[float, np.ndarray] | None:
+    """The apex's offset along ``tangent`` from the curve's ``end`` (image
+    px), found on the mean of lines along the tangent across the end face
+    (:data:`TIP_POOL_HW`, one per :attr:`TubeLook.strip_lines`), each moved
+    back by how far short of the apex the tube's cap ends on it, and the
+    lines' starts; None where the mean shows no end.
+
+    On a frame whose noise needed longer strips for the side edges: there,
+    each line's outermost strong step within reach is as often a noise
+    bump beyond the end as the end itself, and their median runs on frame
+    after frame; the mean of n lines has 1/√n of their noise."""
+    hw = look.mean_half_width
+    lateral = np.linspace(-TIP_POOL_HW, TIP_POOL_HW, look.strip_lines) * hw
+    short = hw - np.sqrt(np.maximum(hw**2 - lateral**2, 0.0))
+    normal = 1j * tangent
+    starts = end + normal * lateral - tangent * (look.cap or 0.0) * short
+    prof = sample_lines(image, starts, np.full(lateral.size, tangent), offsets)
+    seen = np.isfinite(prof).sum(axis=0)
+    mean = np.where(seen > 0, np.nansum(prof, axis=0) / np.maximum(seen, 1), np.nan)[None, :]
+    off, strength = end_edge(mean, step, polarity=look.polarity, window=reach,
+                             smooth_px=look.smooth_px, nearest=nearest)
+    if not (np.isfinite(off[0]) and strength[0] > 0.25 * look.strength):
+        return None
+    return float(off[0]), starts
 
 
 def _cap_shape(off: np.ndarray, short: np.ndarray, half_width: float) -> float:
