@@ -34,7 +34,7 @@ IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".jpg", ".jpeg", ".bmp", ".webp", ".j
                   ".pgm", ".ppm", ".pnm")
 TIFF_SUFFIXES = (".tif", ".tiff")
 VIDEO_SUFFIXES = (".avi", ".mp4", ".mov", ".mkv", ".m4v", ".mpg", ".mpeg", ".wmv", ".webm",
-                  ".flv", ".ogv", ".mjpeg", ".mjpg")
+                  ".flv", ".ogv", ".mjpeg", ".mjpg", ".gif")
 WRITE_VIDEO_FOURCC = {".avi": "MJPG", ".mp4": "mp4v"}
 FRAME_NAME = "frame_{:05d}.png"
 _FRAME_NAME_RE = re.compile(r"frame_\d{5,}\.png")

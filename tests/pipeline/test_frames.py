@@ -396,6 +396,20 @@ def test_video_attributes(tmp_path):
         assert sum(1 for _ in reader) == 5 and sum(1 for _ in reader) == 5
 
 
+def test_animated_gif_is_read_as_a_video(tmp_path):
+    from PIL import Image
+
+    frames = [(smooth(32, 48, k) * 255).astype(np.uint8) for k in range(4)]
+    Image.fromarray(frames[0]).save(tmp_path / "a.gif", save_all=True, duration=100,
+                                    append_images=[Image.fromarray(f) for f in frames[1:]])
+    reader, got = read_all(tmp_path / "a.gif")
+    assert len(got) == 4 and got[0].shape == (32, 48)
+    assert reader.fps == pytest.approx(10.0)  # (100 ms a frame)
+    # (a grey palette: each frame's levels come back to within rounding)
+    for want, have in zip(frames, got, strict=True):
+        assert np.abs(have.astype(int) - want).max() <= 2
+
+
 def test_to_float_scales_by_dtype():
     assert to_float(np.array([[0, 255]], np.uint8)).tolist() == [[0.0, 1.0]]
     assert to_float(np.array([[0, 65535]], np.uint16)).tolist() == [[0.0, 1.0]]
