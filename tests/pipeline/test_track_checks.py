@@ -343,3 +343,23 @@ def test_a_noisy_frame_s_fit_is_judged_against_its_own_edge_noise():
     # centres that scatter by pixels are no edges, however well that explains
     # the residual (a start on the wrong structure: 12-39 px against 10-29)
     assert not track._good(replace(r, residual_px=12.0, noise_px=10.0), look)
+
+
+def test_a_residual_the_video_has_always_had_passes_and_a_jump_does_not():
+    hw = 10.0
+    z, _ = arc_axis(40 - 170j, 0.0, 300.0, 0.002)
+    curve = fit_to_polyline(z, 0.0, n_coef=16)
+    look = TubeLook(-1, np.full(5, hw), 0.1)
+    r = track.refine(tube_image((200, 400), 40 - 170j, 0.0, 300.0, 0.002, hw), curve, look)
+    assert track._good(r, look)
+    fixed = 0.08 * hw  # (the fixed limit, over the clean frame's own scatter)
+    # a fit a little over the fixed limit: lost on its own ...
+    over = replace(r, residual_px=1.2 * fixed)
+    assert not track._good(over, look)
+    # ... kept where the video's last frames fitted about as well (a stretch
+    # that always fits badly: a holder's lumen tracked as the tube) ...
+    assert track._good(over, look, typical_px=1.0 * fixed)
+    # ... but not where it jumped from a tight fit, nor past RESIDUAL_KEEP_MAX_HW
+    assert not track._good(over, look, typical_px=0.5 * fixed)
+    far = replace(r, residual_px=track.RESIDUAL_KEEP_MAX_HW * hw * 1.05)
+    assert not track._good(far, look, typical_px=far.residual_px)
