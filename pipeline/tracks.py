@@ -21,7 +21,7 @@ import pandas as pd
 from . import schema as S
 from .atomic import write_csv, write_json
 from .binning import Binning
-from .centreline import Curve, resample, tip_point
+from .centreline import Curve, fit_to_polyline, n_coef_for, resample, tip_point
 from .drift import FOLLOW_MIN_PX
 from .field import field_stop
 from .levels import levels_of
@@ -266,10 +266,14 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
         results = list(track_frames(iter(frames), base_hint=base_hint, base_end=base_end,
                                     first_detection=first_det, progress=tick,
                                     settings=settings, joints=joints))
+        unmeasured = not any(r.ok for r in results)
         results, still_note, still = _stood_still(frames, results, first_det)
         if still is not None:
             # the tube may be there all the same, fainter than what stood still
-            found = _past_still(frames, still, base_hint, settings, joints)
+            # (also tracked on the frames as they are where nothing was measured
+            # on it: a reticle's line, which the tube may cross)
+            found = _past_still(frames, still, base_hint, settings, joints,
+                                track_hidden=not unmeasured)
             if isinstance(found, str):
                 still_note = f"{still_note}; {found}"
             else:
@@ -418,8 +422,24 @@ def _stood_still(frames, results, det):
     from .motion import moved_elsewhere
 
     ok = [r for r in results if r.ok]
-    if det is None or len(results) < 3 or len(ok) < 2:
+    if det is None or len(results) < 3:
         return results, None, None
+    if len(ok) < 2:
+        # nothing measured on what the first frame showed: a reticle's line or
+        # a dish's wall, found for the tube, whose edges no tube's fit matched
+        # on any frame; looked at as it was found
+        if ok or det.length < 2 * det.half_width:
+            return results, None, None
+        n_coef = n_coef_for(det.length, 2 * det.half_width,
+                            widths_per_coef=TrackSettings().widths_per_coef)
+        found = fit_to_polyline(det.path, det.base_angle, n_coef=max(n_coef, 4))
+        _, z = resample(found)
+        share = moved_elsewhere(iter(frames), np.c_[-z.imag, z.real], det.half_width)
+        if share < MOVED_ELSEWHERE:
+            return results, None, None
+        return results, (f"what the first frame showed most (a structure {2 * det.half_width:.0f}"
+                         f" px wide) could not be measured on any frame as a tube, while "
+                         f"{share:.1f}x its area moved elsewhere"), (found, det.half_width)
     tips = np.array([tip_point(r.curve) for r in ok])
     if np.abs(tips - tips[0]).max() > max(2.0, STILL_HALF_WIDTHS * det.half_width):
         return results, None, None
@@ -444,7 +464,7 @@ def _stood_still(frames, results, det):
 HELD_AT_END_HW = 3.0
 
 
-def _past_still(frames, still, base_hint, settings, joints):
+def _past_still(frames, still, base_hint, settings, joints, track_hidden=True):
     """The video tracked again with the structure that stood still hidden
     (:mod:`pipeline.static_mask`): a faint tube next to a holder, a fibre or a
     scratch that stands out more.
@@ -452,9 +472,14 @@ def _past_still(frames, still, base_hint, settings, joints):
     ``still`` is ``(curve, half_width)`` from :func:`_stood_still`. What is
     found past it may stand still too (the rest of a fibre the first track
     followed only part of): it is hidden as well, up to :data:`HIDDEN_MAX`
-    structures in all. Returns ``(frames, results, detection, note)``, the
-    frames being the hidden ones; or, where no tube is found past them that
-    can be measured, a line saying why.
+    structures in all. The tube is found on the frames with them hidden, and
+    tracked there too; with ``track_hidden`` False also on the frames as they
+    are, and the track that measured more frames kept (a structure the tube
+    crosses, hidden, hides the tube there; one the tube lies along may draw
+    its fit, shown). Returns
+    ``(frames, results, detection, note)``, the frames being those tracked;
+    or, where no tube is found past them that can be measured, a line saying
+    why.
     """
     view = frames.first
     hides = []
@@ -472,6 +497,12 @@ def _past_still(frames, still, base_hint, settings, joints):
             break
     else:
         return f"with it hidden, what was found next stood still too ({HIDDEN_MAX} hidden)"
+    tracked = hidden
+    if not track_hidden:
+        plain = list(track_frames(iter(frames), base_hint=base_hint, base_end=base_end,
+                                  first_detection=det, settings=settings, joints=joints))
+        if sum(r.ok for r in plain) > sum(r.ok for r in results):
+            tracked, results = frames, plain
     lengths = np.array([r.curve.length for r in results if r.ok])
     if lengths.size == 0:
         return "with it hidden, the tube found past it could not be measured on any frame"
@@ -479,10 +510,12 @@ def _past_still(frames, still, base_hint, settings, joints):
         return (f"with it hidden, a tube was found past it, but its length jumped by "
                 f"{_jitter(lengths):.1%} from frame to frame (its end not found): not measured")
     widths = ", ".join(f"{2 * h.half_width:.0f}" for h in hides)
-    return hidden, results, det, (
+    return tracked, results, det, (
         f"{len(hides)} structure(s) ({widths} px wide) stood still over the video where the "
         "tube was looked for, while the scene moved elsewhere: hidden (their pixels replaced "
-        "by the background about them) and the tube tracked again past them"
+        "by the background about them) and the tube "
+        + ("tracked again past them" if tracked is hidden
+           else "found past them, then tracked on the frames as they are")
         + ("; the tube starts at the first one's end (a holder)" if held else ""))
 
 

@@ -2,6 +2,7 @@
 the tube (:func:`pipeline.motion.moved_elsewhere`, ``tracks._stood_still``)."""
 
 import json
+from dataclasses import replace
 
 import cv2
 import numpy as np
@@ -144,3 +145,40 @@ def test_a_tube_that_stays_put_is_measured(tmp_path):
     assert not any("stood still" in note for note in run.notes)
     _, acc = score_folder(still, tmp_path / "out")
     assert acc.meets_targets()
+
+
+def _unmeasured(n):
+    from pipeline.track import FrameTrack
+
+    return [FrameTrack(i, "tube found but its edges do not fit", None, "init") for i in range(n)]
+
+
+def test_what_no_frame_measured_is_hidden_where_the_scene_moved_elsewhere():
+    """What the first frame showed most (a reticle's line, a dish's wall) and
+    no frame could fit as a tube is looked at as it was found: where the scene
+    moved elsewhere, it is handed on to be hidden, as a tracked structure
+    that stood still is."""
+    from pipeline.segment import detect
+
+    rng = np.random.default_rng(1)
+    static = np.zeros((120, 160), np.float32)
+    cv2.line(static, (5, 20), (155, 20), 1.0, 7)  # longer and wider than the bar
+
+    def noisy(img):
+        return 0.3 + 0.5 * img + rng.normal(0.0, 0.02, img.shape).astype(np.float32)
+
+    turning = [noisy(static + _bar(a)) for a in (0.0, 20.0, 40.0, 60.0, 80.0)]
+    det = detect(turning[0])
+    assert det is not None and abs(-det.path.imag.mean() - 20) < 2  # the static line
+    results = _unmeasured(5)
+    out, note, still = tracks_module._stood_still(turning, results, det)
+    assert out == results  # (nothing to mark)
+    assert still is not None and "could not be measured on any frame" in note
+    curve, half_width = still
+    assert half_width == det.half_width and abs(curve.length - det.length) < 0.05 * det.length
+    # nothing moved: nothing handed on
+    steady = [noisy(static + _bar(0.0)) for _ in range(5)]
+    assert tracks_module._stood_still(steady, results, detect(steady[0]))[2] is None
+    # a frame measured: the check of a tracked structure's tip holds instead
+    measured = [replace(results[0], status="ok")] + results[1:]
+    assert tracks_module._stood_still(turning, measured, det)[2] is None
