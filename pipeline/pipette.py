@@ -55,12 +55,13 @@ MIN_BEND_DEG = 45.0
 #: A point stays on the first frame's centreline within this (px, at least;
 #: and a fifth of the tube's half-width).
 STILL_PX = 1.0
-#: The stretch that stood still, or that a hinge fitted to the bent frames
-#: puts the holder's end at, must be at least this many tube widths long ...
+#: The stretch that stood still must be at least this many tube widths long ...
 MIN_WIDTHS = 2.0
-#: ... but the profiles' step from the holder to the tube is looked for from
-#: this many on: the fit may have run on into the holder by less than
-#: :data:`MIN_WIDTHS` (23 px, 1.6 widths, into an independent scene's glass),
+#: ... but the holder's end within it (the profiles' step from the holder to
+#: the tube, or the hinge the bent frames fit) is looked for from this many
+#: on: the fit may have run on into the holder by less than :data:`MIN_WIDTHS`
+#: (23 px, 1.6 widths, into an independent scene's glass; a glass 1.99 widths
+#: long before a tube 85 px wide, whose hinge the bent frames told to 3.5 px),
 #: and the profiles' step tells the holder where the motion cannot.
 STEP_WIDTHS = 1.0
 #: The tube beyond it must keep at least this share of the length tracked.
@@ -655,7 +656,7 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
                     f"{wobble * px:.1f} px, its drift aside)")
             told = (f"the profiles along the tracked structure stepped by {change:.0f}x "
                     f"their scatter {s * px:.0f} px from its start, and {kept}")
-    if (told is None or (s < least and not profiled)
+    if (told is None or (s < STEP_WIDTHS * 2 * half_width and not profiled)
             or first.length - s < MIN_TUBE_SHARE * first.length):
         return [r.moved(r.stage_shift - origin) for r in results], None
     arc, z, _, _ = _sampled(first, 0.25)

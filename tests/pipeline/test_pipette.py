@@ -466,3 +466,28 @@ def test_a_holder_whose_lumen_is_the_tube_s_width_ends_where_its_walls_do():
     assert _holder_end(img, Curve(mouth, ANGLE, LENGTH, np.zeros(8)), HW) is None
     bare = tube_image((480, 640), 639 - 240j, ANGLE, LENGTH + 219, 1e-12, HW, noise=0.01)
     assert _holder_end(bare, late, HW) is None
+
+
+def test_a_hinge_nearer_the_tracked_base_than_two_widths_is_cut():
+    # a holder of the tube's own look showing for 1.5 tube widths (the
+    # profiles do not step; a glass 1.99 widths long before a tube 85 px wide
+    # was kept as the tube, 18 deg off): the stretch that stood still is over
+    # two widths (the tube bends little near its holder), the hinge the bent
+    # frames fit is where the holder ends
+    s0 = 1.5 * 2 * HW
+    base = 100 - 240j
+    img = tube_image((480, 640), base, 0.0, 300.0, 1e-12, HW, noise=0.005,
+                     pipette_half_width=HW, pipette_contrast=1.0)
+    from dataclasses import replace as swap
+
+    results = [swap(r, curve=swap(r.curve, base=base - s0))
+               for r in _clamped_tracks(s0, [0.0, 0.5, 1.0, 2.0, 3.0], noise=1e-3)]
+    least = pipette.MIN_WIDTHS * 2 * HW
+    assert pipette.static_stretch(results, HW, least) >= least
+    out, note = pipette.drop_holder(results, lambda: img, HW)
+    assert note is not None and "as a tube clamped there would" in note, note
+    assert all(r.ok and abs(r.curve.base - base) < 1.5 for r in out)
+    # under a tube width it is not: a tube's own base may stand still so long
+    short = [swap(r, curve=swap(r.curve, base=base - 0.5 * 2 * HW))
+             for r in _clamped_tracks(0.5 * 2 * HW, [0.0, 0.5, 1.0, 2.0, 3.0], noise=1e-3)]
+    assert pipette.drop_holder(short, lambda: img, HW)[1] is None
