@@ -681,7 +681,7 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
         if source == BORDER_BASE and abs(r.curve.base - start) > 2.0 * hw0:
             source = "where the tube's edges begin (the mask ran on into a pipette)"
         elif source in (PIPETTE_STEP, HOLDER_STEP) and r.curve.base == start:
-            held = _holder_end(image, r.curve, look.mean_half_width)
+            held = _holder_end(image, r.curve, look.mean_half_width, det.half_width)
             if held is not None:
                 r = replace(r, curve=held)
                 source = (f"{source}; then moved to where the profiles across it become the "
@@ -714,11 +714,14 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
     return r, look, source
 
 
-def _holder_end(image: np.ndarray, curve: Curve, half_width: float) -> Curve | None:
+def _holder_end(image: np.ndarray, curve: Curve, half_width: float,
+                rough_half_width: float = 0.0) -> Curve | None:
     """``curve`` from where, along its base axis, the profiles across it
     become the tube's (:func:`pipeline.pipette.profile_change`, over
-    :data:`HOLDER_END_HW` half-widths either side of its base), or None
-    where they do not step there, or step within a px of its base.
+    :data:`HOLDER_END_HW` half-widths either side of its base, of the tube's
+    or, if wider, of the detection's ``rough_half_width``: its width step is
+    off by as much as its mask is too wide), or None where they do not step
+    there, or step within a px of its base.
 
     For a base found at a width step whose edge pairs cannot place it: a
     thick-walled holder whose lumen is as wide as the tube shows the tube's
@@ -728,7 +731,7 @@ def _holder_end(image: np.ndarray, curve: Curve, half_width: float) -> Curve | N
     independent scene: the base 12 px past the mouth)."""
     from .pipette import HOLDER_CHI2, profile_change
 
-    reach = HOLDER_END_HW * half_width
+    reach = HOLDER_END_HW * max(half_width, rough_half_width)
     if curve.length < 4.0 * reach:
         return None
     back = cut_base(curve, -reach, curve.base_angle)

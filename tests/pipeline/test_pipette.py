@@ -466,6 +466,14 @@ def test_a_holder_whose_lumen_is_the_tube_s_width_ends_where_its_walls_do():
     assert _holder_end(img, Curve(mouth, ANGLE, LENGTH, np.zeros(8)), HW) is None
     bare = tube_image((480, 640), 639 - 240j, ANGLE, LENGTH + 219, 1e-12, HW, noise=0.01)
     assert _holder_end(bare, late, HW) is None
+    # put 5 half-widths past the mouth (a mask twice the tube's width, a small
+    # fluorescent tube's: its step 16 px into the tube): out of the tube's own
+    # reach, found within the detection's
+    later = Curve(mouth + 5 * HW * np.exp(1j * ANGLE), ANGLE, LENGTH - 5 * HW, np.zeros(8))
+    missed = _holder_end(img, later, HW)
+    assert missed is None or abs(missed.base - mouth) > 2.0
+    found = _holder_end(img, later, HW, rough_half_width=2 * HW)
+    assert found is not None and abs(found.base - mouth) < 1.0
 
 
 def test_a_hinge_nearer_the_tracked_base_than_two_widths_is_cut():
