@@ -506,6 +506,10 @@ def _past_still(frames, still, base_hint, settings, joints, track_hidden=True):
     lengths = np.array([r.curve.length for r in results if r.ok])
     if lengths.size == 0:
         return "with it hidden, the tube found past it could not be measured on any frame"
+    if lengths.size < HIDDEN_MIN_SHARE * len(results):
+        return (f"with it hidden, what was found past it was measured on only {lengths.size} "
+                f"of {len(results)} frames (another still structure, only partly hidden?): "
+                "not measured")
     if _jitter(lengths) > HIDDEN_LENGTH_JITTER:
         return (f"with it hidden, a tube was found past it, but its length jumped by "
                 f"{_jitter(lengths):.1%} from frame to frame (its end not found): not measured")
@@ -521,6 +525,11 @@ def _past_still(frames, still, base_hint, settings, joints, track_hidden=True):
 
 #: Structures that stood still hidden at most, before the tube is given up.
 HIDDEN_MAX = 2
+#: The tube tracked past hidden structures is kept only where it was measured
+#: on at least this share of the frames: what was found past a reticle's
+#: hidden arms was the rest of another arm, measured on 5 frames of 28, each
+#: of them wrong.
+HIDDEN_MIN_SHARE = 0.5
 #: The tube tracked past hidden structures is kept only where its length
 #: changes from one measured frame to the next by at most this share, in the
 #: median. What stood out more than the tube leaves a faint tube, whose end a

@@ -102,6 +102,19 @@ def test_a_tube_found_past_a_hidden_fibre_whose_length_jumps_is_not_measured(
     assert any("its length jumped" in note for note in run.notes)
 
 
+def test_a_tube_found_past_a_hidden_fibre_measured_on_few_frames_is_not_measured(
+        fibre_scene, tmp_path, monkeypatch):
+    """... and only where it was measured on half the frames
+    (:data:`pipeline.tracks.HIDDEN_MIN_SHARE`); asked for more than all of
+    them, the same scene's frames stay unmeasured, and the note says why."""
+    monkeypatch.setattr(tracks_module, "HIDDEN_MIN_SHARE", 1.01)
+    fibre, um_per_px = fibre_scene
+    run = track_video(fibre / "frames", tmp_path / "out", um_per_px=um_per_px)
+    tracks = pd.read_csv(tmp_path / "out" / "tracks.csv")
+    assert tracks.bend_angle_deg.isna().all()
+    assert any("was measured on only 6 of 6 frames" in note for note in run.notes)
+
+
 def test_nothing_tube_like_past_what_stood_still_gives_no_angle(tmp_path):
     """A static dark bar (taken for the tube) while a disc moves elsewhere:
     with the bar hidden no tube is found, so the bar's frames stay
