@@ -116,13 +116,6 @@ PIPETTE_MAX_SCATTER_PX = 0.3
 PIPETTE_MAX_TURN_DEG = 3.0
 #: ... and the axis's direction is known to this standard error, deg.
 PIPETTE_MAX_SE_DEG = 0.1
-#: The pipette's half-width over the tube's that its edge pairs are looked for
-#: at (:func:`pipette_axis`) ...
-PIPETTE_RATIOS = (0.35, 0.5, 0.65, 0.8)
-#: ... and, where those give no axis, a holder's wider than the tube (a dark
-#: clamp: a video starting curled past a turn took its base tangent from the
-#: first frames' fits instead, 1.0 deg off on every frame).
-HOLDER_RATIOS = (1.5, 2.0, 2.5, 3.0)
 #: Extra weight of the roughness penalty over the last :data:`TIP_STIFF_WIDTHS`
 #: tube widths: the curvature there is held all but constant, so the tip
 #: tangent is the continuation of the arc before it rather than the slope of
@@ -1290,14 +1283,13 @@ def pipette_axis(image: np.ndarray, curve: Curve, look: TubeLook, *,
     tangent, measured apart from the tube's bend (a base tangent fitted to a
     bent tube leans 0.6-0.7° into the bend). Profiles across the base axis
     behind the base, over :data:`PIPETTE_WIDTHS` of the tube's width, find the
-    pipette's edge pairs (at the narrower widths a pipette has; where none
-    gives an axis, at the wider ones of a holder: a clamp, a wide glass,
-    :data:`HOLDER_RATIOS`), and a robust line through their midpoints gives
-    the axis. None unless at least :data:`PIPETTE_MIN_PROFILES` agree to
-    :data:`PIPETTE_MAX_SCATTER_PX` (no pipette in view, or something else
-    behind the base) and give its direction to :data:`PIPETTE_MAX_SE_DEG` (a
-    short or faint pipette), or if the axis is more than
-    :data:`PIPETTE_MAX_TURN_DEG` off the curve's base tangent.
+    pipette's edge pairs (at the narrower widths a pipette has), and a robust
+    line through their midpoints gives the axis. None unless at least
+    :data:`PIPETTE_MIN_PROFILES` agree to :data:`PIPETTE_MAX_SCATTER_PX`
+    (no pipette in view, or something else behind the base) and give its
+    direction to :data:`PIPETTE_MAX_SE_DEG` (a short or faint pipette), or
+    if the axis is more than :data:`PIPETTE_MAX_TURN_DEG` off the curve's
+    base tangent.
 
     Returns
     -------
@@ -1306,27 +1298,16 @@ def pipette_axis(image: np.ndarray, curve: Curve, look: TubeLook, *,
         on it abreast of the curve's base, full-frame px (y up): the tube
         leaves the pipette on its axis.
     """
-    for ratios in (PIPETTE_RATIOS, HOLDER_RATIOS):
-        found = _holder_line(image, curve, look, np.asarray(ratios), origin)
-        if found is not None:
-            return found
-    return None
-
-
-def _holder_line(image, curve: Curve, look: TubeLook, ratios: np.ndarray, origin):
-    """:func:`pipette_axis` from edge pairs ``ratios`` times the tube's
-    half-width apart (the ratio whose pairs are found most often), or None."""
     hw = float(look.half_width[0])
     axis = np.exp(1j * curve.base_angle)
     s = np.arange(0.5 * hw, PIPETTE_WIDTHS * 2 * hw, max(1.0, hw / 6))
     step = 0.25
-    # (a wider holder's pairs, with their tolerance and window, inside the profiles)
-    reach = (1.2 if ratios.max() < 1.0 else ratios.max() * 1.25 + 0.4) * hw
-    offsets = np.arange(-reach, reach + step / 2, step)
+    offsets = np.arange(-1.2 * hw, 1.2 * hw + step / 2, step)
     prof = sample_lines(image, curve.base - _crop_shift(origin) - s * axis,
                         np.full(s.size, 1j * axis), offsets)
     # every width tried in one call (the profiles stacked once per width), and
     # the width whose pairs are found most often kept
+    ratios = np.array([0.35, 0.5, 0.65, 0.8])
     m = s.size
     pairs = edge_pairs(np.tile(prof, (ratios.size, 1)), step, np.repeat(ratios * hw, m),
                        polarity=look.polarity, window=0.4 * hw, width_tol=0.25,
