@@ -1172,9 +1172,7 @@ def _tip_offset(image, smp, shift, look: TubeLook, window: float, step: float, *
     half = reach + 3.0 * TIP_FOCUS_PX
     offsets = np.arange(-np.ceil(half / step), np.ceil(half / step) + 1) * step
     prof = sample_lines(image, lines + tangent * coarse, np.full(lines.size, tangent), offsets)
-    seen = np.isfinite(prof).sum(axis=0)
-    mean = np.where(seen > 0, np.nansum(prof, axis=0) / np.maximum(seen, 1), np.nan)
-    fine, _ = end_edge(mean[None, :], step, polarity=look.polarity, window=reach,
+    fine, _ = end_edge(_lines_mean(prof), step, polarity=look.polarity, window=reach,
                        smooth_px=TIP_FOCUS_PX, nearest=True)
     return (coarse + (float(fine[0]) if np.isfinite(fine[0]) else 0.0) + to_apex, True,
             cap_shape)
@@ -1198,13 +1196,18 @@ def _pooled_end(image, end, tangent, look: TubeLook, reach: float, offsets, step
     normal = 1j * tangent
     starts = end + normal * lateral - tangent * (look.cap or 0.0) * short
     prof = sample_lines(image, starts, np.full(lateral.size, tangent), offsets)
-    seen = np.isfinite(prof).sum(axis=0)
-    mean = np.where(seen > 0, np.nansum(prof, axis=0) / np.maximum(seen, 1), np.nan)[None, :]
-    off, strength = end_edge(mean, step, polarity=look.polarity, window=reach,
+    off, strength = end_edge(_lines_mean(prof), step, polarity=look.polarity, window=reach,
                              smooth_px=look.smooth_px, nearest=nearest)
     if not (np.isfinite(off[0]) and strength[0] > 0.25 * look.strength):
         return None
     return float(off[0]), starts
+
+
+def _lines_mean(prof: np.ndarray) -> np.ndarray:
+    """The mean of parallel lines' profiles (rows), each sample over the lines
+    that have it (NaN off the image): one profile, shape (1, samples)."""
+    seen = np.isfinite(prof).sum(axis=0)
+    return np.where(seen > 0, np.nansum(prof, axis=0) / np.maximum(seen, 1), np.nan)[None, :]
 
 
 def _cap_shape(off: np.ndarray, short: np.ndarray, half_width: float) -> float:

@@ -21,7 +21,7 @@ import pandas as pd
 from . import schema as S
 from .atomic import write_csv, write_json
 from .binning import Binning
-from .centreline import Curve, fit_to_polyline, n_coef_for, resample, tip_point
+from .centreline import Curve, fit_to_polyline, resample, tip_point
 from .drift import FOLLOW_MIN_PX
 from .field import field_stop
 from .levels import levels_of
@@ -47,6 +47,7 @@ from .track import (
     TrackSettings,
     as_float,
     hold_section_ratio,
+    spline_size,
     track_frames,
 )
 from .view import base_to_border, cut_by_border
@@ -424,14 +425,13 @@ def _stood_still(frames, results, det):
     ok = [r for r in results if r.ok]
     if det is None or len(results) < 3:
         return results, None, None
-    if len(ok) < 2:
+    if not ok:
         # nothing measured on what the first frame showed: a reticle's line or
         # a dish's wall, found for the tube, whose edges no tube's fit matched
         # on any frame; looked at as it was found
-        if ok or det.length < 2 * det.half_width:
+        if det.length < 2 * det.half_width:
             return results, None, None
-        n_coef = n_coef_for(det.length, 2 * det.half_width,
-                            widths_per_coef=TrackSettings().widths_per_coef)
+        n_coef = spline_size(det.length, det.half_width, (), TrackSettings(), known=False)
         found = fit_to_polyline(det.path, det.base_angle, n_coef=max(n_coef, 4))
         _, z = resample(found)
         share = moved_elsewhere(iter(frames), np.c_[-z.imag, z.real], det.half_width)
@@ -440,6 +440,8 @@ def _stood_still(frames, results, det):
         return results, (f"what the first frame showed most (a structure {2 * det.half_width:.0f}"
                          f" px wide) could not be measured on any frame as a tube, while "
                          f"{share:.1f}x its area moved elsewhere"), (found, det.half_width)
+    if len(ok) < 2:
+        return results, None, None
     tips = np.array([tip_point(r.curve) for r in ok])
     if np.abs(tips - tips[0]).max() > max(2.0, STILL_HALF_WIDTHS * det.half_width):
         return results, None, None
@@ -498,7 +500,7 @@ def _past_still(frames, still, base_hint, settings, joints, track_hidden=True):
     else:
         return f"with it hidden, what was found next stood still too ({HIDDEN_MAX} hidden)"
     tracked = hidden
-    if not track_hidden:
+    if not track_hidden and not all(r.ok for r in results):
         plain = list(track_frames(iter(frames), base_hint=base_hint, base_end=base_end,
                                   first_detection=det, settings=settings, joints=joints))
         if sum(r.ok for r in plain) > sum(r.ok for r in results):
