@@ -444,7 +444,8 @@ def _skeleton_graph(skel: np.ndarray):
     return graph.tocsr(), rr, cc
 
 
-def longest_path(skel: np.ndarray, *, border_bonus: float = 0.0, margin: float = 0.0):
+def longest_path(skel: np.ndarray, *, border_bonus: float = 0.0, margin: float = 0.0,
+                 radius: np.ndarray | None = None):
     """The longest shortest path between two end points of a skeleton.
 
     Parameters
@@ -457,6 +458,13 @@ def longest_path(skel: np.ndarray, *, border_bonus: float = 0.0, margin: float =
         dust stuck to it.
     margin : float
         px.
+    radius : (rows, cols) float ndarray, optional
+        The structure's half-width about each skeleton pixel (its distance
+        transform), px. Given, each step counts its length times the
+        radius there, and the path with the most of the structure's area
+        along it wins (``border_bonus`` then counts times the radius at that
+        end): a thin line the tube touches (a burned-in reticle, a fibre, a
+        scratch) runs longer than the tube but holds less of it.
 
     Returns
     -------
@@ -464,6 +472,11 @@ def longest_path(skel: np.ndarray, *, border_bonus: float = 0.0, margin: float =
         (row, col) of the path's pixels, in order.
     """
     graph, rr, cc = _skeleton_graph(skel)
+    if radius is not None and rr.size:
+        r = np.maximum(radius[rr, cc], 0.5)
+        coo = graph.tocoo()
+        graph = coo_matrix((coo.data * (r[coo.row] + r[coo.col]) / 2, (coo.row, coo.col)),
+                           shape=coo.shape).tocsr()
     if rr.size < 2:
         return np.stack([rr, cc], axis=1)
     degree = np.diff(graph.indptr)
@@ -476,6 +489,8 @@ def longest_path(skel: np.ndarray, *, border_bonus: float = 0.0, margin: float =
     if border_bonus > 0:
         bonus = np.array([border_bonus if _touches_border((rr[e], cc[e]), skel.shape, margin)
                           else 0.0 for e in ends])
+        if radius is not None:
+            bonus = bonus * np.maximum(radius[rr[ends], cc[ends]], 0.5)
         length = np.where(length >= 0, length + bonus[:, None] + bonus[None, :], length)
     i, j = np.unravel_index(np.argmax(length), (ends.size, ends.size))
     src, dst = ends[i], ends[j]
@@ -782,11 +797,36 @@ def _outline_wins(det: Detection | None, outline: Detection | None) -> bool:
                  or outline.found_length > OUTLINE_SPAN * det.found_length))
 
 
+#: A structure found shorter than this many of its half-widths is stubby, not
+#: tube-like: a tube is 32-96 of them long (Table 1: 8-12 mm by 0.25-0.5 mm;
+#: 20 at least with a half-width a closing widened 1.6x), while a dark region
+#: beyond a dish's wall, filling a corner of the frame, was 10 (its width as
+#: large as its extent). The next structure is then looked at, up to
+#: :data:`CANDIDATES` in all, and the first stubby one kept if none is longer.
+TUBE_MIN_HW = 12.0
+CANDIDATES = 3
+
+
 def _detect_in(mask: np.ndarray, f: int, base_hint, base_end, *,
                outline: bool = False) -> Detection | None:
-    """:func:`detect` on a foreground ``mask`` at 1/``f`` resolution."""
+    """:func:`detect` on a foreground ``mask`` at 1/``f`` resolution: the
+    largest structure, or the next where that is stubby (:data:`TUBE_MIN_HW`)."""
+    stubby = None
+    for _ in range(CANDIDATES):
+        det, filled = _detect_largest(mask, f, base_hint, base_end, outline=outline)
+        if det is None or det.found_length >= TUBE_MIN_HW * det.half_width:
+            return det if det is not None else stubby
+        stubby = stubby or det
+        mask = mask & ~filled
+    return stubby
+
+
+def _detect_largest(mask: np.ndarray, f: int, base_hint, base_end, *,
+                    outline: bool = False) -> tuple[Detection | None, np.ndarray | None]:
+    """:func:`detect` on the largest structure of a foreground ``mask`` at
+    1/``f`` resolution; and that structure, filled (None if there is none)."""
     if mask.sum() < 20:
-        return None
+        return None, None
     # an outline is the band of the edges' gradient: the closing that fills it
     # reaches its middle at a width under 2 radii (the discrete radii step past
     # half the gap), and the next radius still widens it as it rounds the ends'
@@ -794,14 +834,14 @@ def _detect_in(mask: np.ndarray, f: int, base_hint, base_end, *,
     filled, closing = fill_tube(fill_lumen(mask), **({"fill_ratio": 1.6, "plateau_ratio": 1.2}
                                                      if outline else {}))
     if outline and closing == 0:
-        return None
+        return None, None
     dist = ndi.distance_transform_edt(filled)
     skel = _skeleton(filled)
     radius = float(np.median(dist[skel])) if skel.any() else 0.0
     for cuts in range(CROSSINGS_MAX + 1):
-        path_rc = longest_path(skel, border_bonus=2.0 * radius, margin=2.0 + radius)
+        path_rc = longest_path(skel, border_bonus=2.0 * radius, margin=2.0 + radius, radius=dist)
         if path_rc.shape[0] < 5:
-            return None
+            return None, filled
         width = 2 * dist[path_rc[:, 0], path_rc[:, 1]]
         crossing = _crossing_branch(path_rc, width) if cuts < CROSSINGS_MAX else None
         if crossing is None:
@@ -812,7 +852,7 @@ def _detect_in(mask: np.ndarray, f: int, base_hint, base_end, *,
         skel[crossing[:, 0], crossing[:, 1]] = False
     half_width = float(np.median(width)) / 2
     if path_rc.shape[0] * 1.0 < 3 * half_width:
-        return None  # a blob, not a tube
+        return None, filled  # a blob, not a tube
     # the skeleton stops about a radius short of each end: extend both ends
     path_rc = path_rc.astype(float)
     margin = 2.0 + half_width
@@ -888,7 +928,7 @@ def _detect_in(mask: np.ndarray, f: int, base_hint, base_end, *,
     half_width = float(np.median(tube_width)) / 2
     pts = from_image(tube[:, 1] * f + (f - 1) / 2, tube[:, 0] * f + (f - 1) / 2)
     if pts.size < 4:
-        return None
+        return None, filled
     # smooth the pixel path a little: skeleton pixels zig-zag by ±0.5 px
     k = max(1, int(half_width / 2))
     if pts.size > 2 * k + 1:
@@ -926,4 +966,5 @@ def _detect_in(mask: np.ndarray, f: int, base_hint, base_end, *,
     held_at = None if held_rc is None else tuple(
         complex(z) for z in from_image(held_rc[:, 1] * f + (f - 1) / 2,
                                        held_rc[:, 0] * f + (f - 1) / 2))
-    return Detection(pts, complex(pts[0]), base_angle, half_width_px, source, bridged, held_at)
+    return Detection(pts, complex(pts[0]), base_angle, half_width_px, source, bridged,
+                     held_at), filled

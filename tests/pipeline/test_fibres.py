@@ -79,11 +79,13 @@ def test_a_fibre_at_the_tip_and_a_holder_leave_the_base_to_the_video(held_and_to
         det = detect(as_float(reader.first))
         assert det.base_source == AMBIGUOUS_BASE
         held = sorted(det.held_at, key=lambda z: z.real)
-        assert abs(held[0] - (90 - 100j)) < 6.0 and abs(held[1] - (340 - 100j)) < 6.0, held
+        # (the width steps a detection's skeleton gives, within about a tube
+        # half-width of the true ends: the tracker places the base, below)
+        assert abs(held[0] - (90 - 100j)) < 8.0 and abs(held[1] - (340 - 100j)) < 8.0, held
         base_end, note, first = _static_end(reader, det)
-    assert abs(complex(*base_end) - (90 + 100j)) < 6.0, base_end
+    assert abs(complex(*base_end) - (90 + 100j)) < 8.0, base_end
     assert "wider holder" in note
-    assert abs(first.path[0] - (90 - 100j)) < 6.0 and abs(first.path[-1] - (340 - 100j)) < 6.0
+    assert abs(first.path[0] - (90 - 100j)) < 8.0 and abs(first.path[-1] - (340 - 100j)) < 8.0
     track_video(folder, tmp_path / "out", um_per_px=1.0)
     t = pd.read_csv(tmp_path / "out" / "tracks.csv")
     assert (t.status == "ok").all()

@@ -44,18 +44,18 @@ def test_what_moves_far_from_the_structure_is_measured_against_its_area():
     assert moved_elsewhere(blinking, path, 2.5) == 0.0
 
 
-def _with_fibre(src, dst):
+def _with_fibre(src, dst, thickness_px=3, row=0.88, wave=0.08):
     """Copy the rendered scene ``src`` into ``dst`` with a long static dark
-    fibre across the frame, darker than the tube, its path clear of the
-    tube's."""
+    fibre ``thickness_px`` wide across the frame, waving by ``wave`` about
+    ``row`` (shares of the height), darker than the tube."""
     (dst / "frames").mkdir(parents=True)
     for i, path in enumerate(sorted((src / "frames").iterdir())):
         frame = cv2.imread(str(path), cv2.IMREAD_UNCHANGED).astype(np.float32)
         h, w = frame.shape[:2]
         t = np.linspace(0.0, 1.0, 80)
-        pts = np.c_[0.05 * w + 0.9 * w * t, 0.88 * h + 0.08 * h * np.sin(7 * t)]
+        pts = np.c_[0.05 * w + 0.9 * w * t, row * h + wave * h * np.sin(7 * t)]
         mask = np.zeros((h, w), np.float32)
-        cv2.polylines(mask, [np.rint(pts).astype(np.int32)], False, 1.0, 3, cv2.LINE_AA)
+        cv2.polylines(mask, [np.rint(pts).astype(np.int32)], False, 1.0, thickness_px, cv2.LINE_AA)
         frame = frame * (1 - 0.8 * mask) + 0.8 * mask * 0.2 * np.median(frame)
         cv2.imwrite(str(dst / "frames" / f"{i:03d}.png"), np.clip(frame, 0, 255).astype(np.uint8))
     for name in ("truth_tracks.csv", "truth_centrelines.csv", "scene.json"):
@@ -63,13 +63,35 @@ def _with_fibre(src, dst):
 
 
 @pytest.fixture(scope="module")
-def fibre_scene(tmp_path_factory):
-    """A rendered scene with a static dark fibre across it (see :func:`_with_fibre`)."""
-    tmp = tmp_path_factory.mktemp("fibre")
+def rendered(tmp_path_factory):
+    """A rendered scene (a tube 14 px wide): its folder and scale, um/px."""
+    tmp = tmp_path_factory.mktemp("rendered")
     scene = default_scene(2, n_frames=6, seed=3, width=480, height=360)
     whole = render_scene(scene, tmp / "whole", fmt="png")
-    _with_fibre(whole, tmp / "fibre")
-    return tmp / "fibre", json.loads((whole / "scene.json").read_text())["layout"]["um_per_px"]
+    return whole, json.loads((whole / "scene.json").read_text())["layout"]["um_per_px"]
+
+
+@pytest.fixture(scope="module")
+def fibre_scene(rendered, tmp_path_factory):
+    """The rendered scene with a static dark band across its top, clear of
+    the tube, longer and darker and of more area (a scratch, a chamber's
+    edge: see :func:`_with_fibre`), that the detector takes for the tube."""
+    whole, um_per_px = rendered
+    dst = tmp_path_factory.mktemp("fibre") / "fibre"
+    _with_fibre(whole, dst, thickness_px=35, row=0.08, wave=0.01)
+    return dst, um_per_px
+
+
+def test_a_thin_fibre_longer_than_the_tube_is_not_taken_for_it(rendered, tmp_path):
+    """A fibre 3 px wide runs over 1.6x the tube's length, darker: the
+    skeleton path holding the most of a structure's area (not the longest)
+    is the tube's, found on the first frame without hiding anything."""
+    whole, um_per_px = rendered
+    _with_fibre(whole, tmp_path / "thin")
+    run = track_video(tmp_path / "thin" / "frames", tmp_path / "out", um_per_px=um_per_px)
+    _, acc = score_folder(tmp_path / "thin", tmp_path / "out")
+    assert acc.meets_targets(), acc
+    assert not any("stood still" in note for note in run.notes)
 
 
 def test_a_fibre_taken_for_the_tube_is_hidden_and_the_tube_measured(fibre_scene, tmp_path):
