@@ -556,6 +556,55 @@ def _in_line(path_rc: np.ndarray, split: int, ratio: float, half_width: float) -
     return cos >= np.cos(np.radians(PIPETTE_IN_LINE_DEG))
 
 
+#: A tube entering the frame at an angle to the border's normal is cut
+#: obliquely by it: its mask narrows over ``half_width * tan(angle)`` on its
+#: way to the border, as onto a narrower pipette. The angle counts up to
+#: this (deg): a tube along the border is not cut across.
+BORDER_CUT_MAX_DEG = 80.0
+
+
+def _cut_by_border(path_rc: np.ndarray, split: int, half_width: float, shape) -> bool:
+    """Whether the narrowing of ``path_rc`` before ``split`` (towards its first
+    point, at the border) is the border cutting the tube obliquely
+    (:func:`cut_by_border`, the tube's line carried on from ``split``). A
+    tube 15 px wide entering at 60 deg to the normal narrowed over 13 px on
+    its way to the border, and that narrowing was taken for a pipette's
+    step: the base put 18 px inside the frame."""
+    reach = int(max(3, round(2 * half_width)))
+    if split + reach >= len(path_rc):
+        return False
+    start = path_rc[split].astype(float)
+    return cut_by_border(start, start - path_rc[split + reach], half_width, shape)
+
+
+def cut_by_border(start_rc, heading_rc, half_width: float, shape) -> bool:
+    """Whether a tube whose full width starts at ``start_rc`` (row, col) and
+    runs back along ``heading_rc`` (row, col) to the border is cut obliquely
+    by it there: its line meets the border within a half-width beyond where
+    its far edge would (``half_width`` · tan of its angle to the border's
+    normal, up to :data:`BORDER_CUT_MAX_DEG`). ``shape``: the image's (rows,
+    cols); ``half_width`` in its px."""
+    start = np.asarray(start_rc, dtype=float)
+    heading = np.asarray(heading_rc, dtype=float)
+    norm = float(np.hypot(*heading))
+    if norm == 0:
+        return False
+    u = heading / norm
+    # the distance along u to each border it runs towards, and the cosine to
+    # that border's normal
+    hits = []
+    for axis, bound in ((0, 0.0), (0, shape[0] - 1.0), (1, 0.0), (1, shape[1] - 1.0)):
+        if abs(u[axis]) > 1e-9:
+            t = (bound - start[axis]) / u[axis]
+            if t >= 0:
+                hits.append((t, abs(u[axis])))
+    if not hits:
+        return False
+    t, cos = min(hits)
+    tan = np.tan(min(np.arccos(min(cos, 1.0)), np.radians(BORDER_CUT_MAX_DEG)))
+    return bool(t <= half_width * (tan + 1.0))
+
+
 def _narrow_and_holder(width: np.ndarray, split: int, ratio: float, trim: int,
                        min_pipette: float) -> tuple[int, int] | None:
     """Where a path whose ``width`` steps at ``split`` (``ratio`` after over
@@ -909,7 +958,8 @@ def _detect_largest(mask: np.ndarray, f: int, base_hint, base_end, *,
         split = 0
         source = AMBIGUOUS_BASE
     elif (ratio > 1.15 and split > min_pipette and _touches_border(path_rc[0], shape, margin)
-          and _in_line(path_rc, split, ratio, half_width)):
+          and _in_line(path_rc, split, ratio, half_width)
+          and not _cut_by_border(path_rc, split, half_width, shape)):
         source = PIPETTE_STEP
     elif (ratio < 1 / HOLDER_RATIO and split > min_pipette
           and _touches_border(path_rc[0], shape, margin)):

@@ -98,7 +98,7 @@ from .refine import (
     self_contact,
     widths_at,
 )
-from .segment import BORDER_BASE, HOLDER_STEP, PIPETTE_STEP, detect
+from .segment import BORDER_BASE, HOLDER_STEP, PIPETTE_STEP, cut_by_border, detect
 
 #: :func:`pipeline.refine.antisymmetry` of the first frame across the tube
 #: found, above which it is taken for a relief (its edges are looked for only
@@ -678,7 +678,12 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
         reach = max(4.0 * hw0, _edge_gap(r) + 2.0 * hw0)
         start = r.curve.base
         r = replace(r, curve=locate_base(image, r.curve, look, reach=reach))
-        if source == BORDER_BASE and abs(r.curve.base - start) > 2.0 * hw0:
+        back = -np.exp(1j * r.curve.base_angle)
+        if (source == BORDER_BASE and abs(r.curve.base - start) > 2.0 * hw0
+                and not cut_by_border((-r.curve.base.imag, r.curve.base.real),
+                                      (-back.imag, back.real), hw0, image.shape)):
+            # (a tube the border cuts obliquely begins its full width that far
+            # in: it is carried on to the border later, as any other)
             source = "where the tube's edges begin (the mask ran on into a pipette)"
         elif source in (PIPETTE_STEP, HOLDER_STEP) and r.curve.base == start:
             held = _holder_end(image, r.curve, look.mean_half_width, det.half_width)
