@@ -80,6 +80,9 @@ END_CLEAR_HW = 0.5
 #: curled over itself: 1.4-1.9, its tip lying against its body).
 CAP_FIT_HW = 0.12
 CAP_SHARES = (-0.5, 1.3)
+#: In a relief, the end's shape is told by the lines this many half-widths
+#: off the axis or more (within a hollow tube's walls).
+RELIEF_CAP_LINES_HW = 0.65
 #: On a round cap (:attr:`TubeLook.cap`), the side edges within this many
 #: half-widths of its apex are left out of the fits.
 CAP_CLEAR_HW = 0.6
@@ -1139,7 +1142,8 @@ def _tip_offset(image, smp, shift, look: TubeLook, window: float, step: float, *
     good = np.isfinite(off) & (strength > 0.25 * look.strength)
     if good.sum() < 2:
         return 0.0, False, np.nan
-    cap_shape = _cap_shape(off[good], short[good], hw)
+    shaped = good & _cap_lines(lateral, hw, relief)
+    cap_shape = _cap_shape(off[shaped], short[shaped], hw)
     used = np.flatnonzero(good)
     if relief:
         # an end face square to the shear fades, and the lines across the lumen
@@ -1208,6 +1212,20 @@ def _lines_mean(prof: np.ndarray) -> np.ndarray:
     that have it (NaN off the image): one profile, shape (1, samples)."""
     seen = np.isfinite(prof).sum(axis=0)
     return np.where(seen > 0, np.nansum(prof, axis=0) / np.maximum(seen, 1), np.nan)[None, :]
+
+
+def _cap_lines(lateral: np.ndarray, half_width: float, relief: bool) -> np.ndarray:
+    """Which of the lines along the tip tangent, ``lateral`` px off the axis,
+    tell the end's shape (:func:`_cap_shape`): all of them; in a relief, those
+    within a hollow tube's walls (:data:`RELIEF_CAP_LINES_HW`). There the lines
+    across the lumen end on the lumen's end (a sealed tip's plug), 1-12 px
+    short of the cap the walls' lines trace (an independent renderer's DIC
+    tube 10 px in half-width): fitted with them the cap's shape missed, the
+    end was voted flat, and the tip put 3.7 px short of its apex on every
+    frame."""
+    if not relief:
+        return np.ones(lateral.shape, bool)
+    return np.abs(lateral) >= RELIEF_CAP_LINES_HW * half_width
 
 
 def _cap_shape(off: np.ndarray, short: np.ndarray, half_width: float) -> float:

@@ -161,3 +161,23 @@ def test_a_round_capped_tube_is_tracked_to_its_apex(tmp_path, round_cap, monkeyp
         short, untold = tracked(tmp_path / "flat")
         assert np.median(length - short) > 0.6
         assert np.abs(untold).mean() > np.abs(errors).mean()
+
+
+def test_a_relief_s_cap_is_told_by_the_lines_within_its_walls():
+    """The ends that the seven lines along the tip tangent found on a frame
+    of an independent renderer's hollow DIC tube (half-width 10 px, a round
+    cap): the two lines 0.4 half-widths off the axis ended on the lumen's
+    sealed end, far short of the cap. With them no cap fits (the end was
+    then voted flat, the tip put 3.7 px short of its apex); the walls'
+    lines tell a hemisphere. A tube not in relief uses every line."""
+    from pipeline.refine import _cap_lines, _cap_shape
+
+    hw = 10.03
+    lateral = np.array([-0.85, -0.7, -0.4, 0.0, 0.4, 0.7, 0.85]) * hw
+    short = hw - np.sqrt(hw**2 - lateral**2)
+    off = np.array([-0.72, 1.5, -7.26, 4.52, -0.86, 1.83, 0.11])
+    assert np.isnan(_cap_shape(off, short, hw))
+    walls = _cap_lines(lateral, hw, relief=True)
+    assert walls.sum() == 4 and not walls[2:5].any()
+    assert _cap_shape(off[walls], short[walls], hw) == pytest.approx(1.0, abs=0.1)
+    assert _cap_lines(lateral, hw, relief=False).all()
