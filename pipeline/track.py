@@ -531,7 +531,7 @@ def _learn_widths(refined: Refined, n_bins: int, fallback: float) -> np.ndarray:
     return np.interp(centres, centres[good], out[good])
 
 
-def _enclosing(image, curve, r, polarity, hw, tol):
+def _enclosing(image, curve, r, polarity, hw, tol, others=()):
     """The edge pair ``r`` found, or a wider pair of the other polarity around
     it whose edges are about as strong: a transparent tube in transmitted
     light shows a bright lumen between its dark walls, and the detector may
@@ -543,13 +543,22 @@ def _enclosing(image, curve, r, polarity, hw, tol):
     detection's half-width (px) and ``tol`` the fits' tolerance (px). Returns
     ``(fit, polarity)``: ``r`` and ``polarity``, or the wider pair's fit and
     the other polarity. (The noise is the first fits' edge filter's, at the
-    look's default smoothing.)"""
+    look's default smoothing.)
+
+    ``others``: fits of ``curve`` with the other polarity made already (the
+    first fits' width guesses), weighed with those made here: a tube whose
+    walls differ in thickness shows, about its lumen, its outer pair and a
+    pair of one outer edge and the thicker wall's lumen edge, about as
+    strong; of the widths tried here only the latter was found (an
+    independent renderer's index-matched tube: 17.4 px wide for 23.4, the
+    midline 2 px to one side, the bend up to 26 deg off), which a first fit
+    had found."""
     inner = float(np.nanmedian(r.width[r.valid]))
     best = None
-    for scale in ENCLOSING_SCALES:
-        look = TubeLook(-polarity, np.full(9, 0.5 * inner * scale), 0.0)
-        c = refine(image, curve, look, window=0.6 * hw, iterations=3, width_tol=0.3,
-                   fit_length=False, tol_px=tol, tip_stiffness=0.0)
+    fits = (refine(image, curve, TubeLook(-polarity, np.full(9, 0.5 * inner * scale), 0.0),
+                   window=0.6 * hw, iterations=3, width_tol=0.3, fit_length=False,
+                   tol_px=tol, tip_stiffness=0.0) for scale in ENCLOSING_SCALES)
+    for c in (*others, *fits):
         if not c.valid.any():
             continue
         wide = float(np.nanmedian(c.width[c.valid]))
@@ -615,6 +624,7 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
                        fit_length=False, tol_px=tol, tip_stiffness=0.0)
             cands.append((r.valid_fraction * r.strength, polarity, r))
     polarity = max(cands, key=lambda c: c[0])[1]
+    first_fits = cands
     if len(polarities) == 3:
         # not told by the skeleton's curve, which may sit off the tube's middle:
         # a relief is odd about the middle its own edges find (measured, where the
@@ -634,7 +644,8 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
                                                 if c[2].valid.any() else 0.0))
     _, polarity, r = best
     if polarity != 0 and r.valid.any():
-        r, polarity = _enclosing(image, curve, r, polarity, hw, tol)
+        r, polarity = _enclosing(image, curve, r, polarity, hw, tol,
+                                 others=[c[2] for c in first_fits if c[1] == -polarity])
     if r.valid_fraction < 0.3:
         return None
     # (the end's sideways step, if any, is told by the frames: see _EndStepVotes)

@@ -11,7 +11,7 @@ import pytest
 
 from models import get_sample
 from pipeline import segment, track
-from pipeline.centreline import fit_to_polyline, from_image
+from pipeline.centreline import fit_to_polyline, from_image, resample
 from pipeline.render import Renderer, default_scene, truth_tables
 
 
@@ -384,3 +384,77 @@ def test_a_phase_halo_is_not_taken_for_the_tube():
     r, look, _ = track.initialise(_bright_lumen(1.0, halo=True))
     assert look.polarity == -1
     assert look.mean_half_width == pytest.approx(8.0, abs=0.5)
+
+
+#: Across an independent renderer's defocused, index-matched hollow tube
+#: (radius 11 px, its lumen 0.7 px off centre, the walls' far side thicker),
+#: at 0.5 px steps from -20 to +20 px about its true midline: one step down
+#: into the thin wall, two (a shoulder) into the thick one.
+_ECCENTRIC_PROFILE = np.array([
+    0.808, 0.808, 0.808, 0.808, 0.808, 0.809, 0.810, 0.811, 0.810, 0.808, 0.806, 0.804, 0.800,
+    0.793, 0.781, 0.768, 0.754, 0.741, 0.726, 0.712, 0.697, 0.682, 0.667, 0.652, 0.639, 0.629,
+    0.625, 0.626, 0.633, 0.648, 0.666, 0.688, 0.709, 0.728, 0.741, 0.751, 0.757, 0.761, 0.762,
+    0.762, 0.761, 0.756, 0.747, 0.735, 0.719, 0.700, 0.679, 0.656, 0.639, 0.627, 0.621, 0.623,
+    0.632, 0.644, 0.659, 0.673, 0.684, 0.691, 0.694, 0.696, 0.699, 0.707, 0.719, 0.737, 0.755,
+    0.772, 0.785, 0.794, 0.799, 0.803, 0.805, 0.806, 0.806, 0.806, 0.807, 0.808, 0.808, 0.808,
+    0.808, 0.808, 0.808])
+
+
+def test_the_pairs_about_a_lumen_include_the_first_fits(monkeypatch):
+    """Taken for the tube, a lumen's bright middle gives way to a dark pair
+    about it (:func:`pipeline.track._enclosing`): the first fits' pairs of
+    that polarity are weighed with those tried about the lumen. On an
+    independent renderer's defocused, index-matched tube with walls of two
+    thicknesses, the widths tried about the lumen found only the pair of
+    the thin wall's outer edge and the thick wall's lumen edge (17.4 px for
+    23.4: the midline 2 px to one side, the bend up to 26 deg off), which a
+    first fit had found whole."""
+    from pipeline.refine import TubeLook, refine
+
+    img, _ = _eccentric_tube()
+    det = segment.detect(img)
+    curve = fit_to_polyline(det.path, det.base_angle, n_coef=12)
+
+    def fit(polarity, half_width, tol):
+        return refine(img, curve, TubeLook(polarity, np.full(9, half_width), 0.0),
+                      window=0.6 * det.half_width, iterations=3, width_tol=tol,
+                      fit_length=False, tol_px=0.02, tip_stiffness=0.0)
+
+    lumen, outer = fit(+1, 3.6, 0.4), fit(-1, 11.0, 0.4)
+    assert np.nanmedian(lumen.width[lumen.valid]) < 9.0
+    # (none tried about the lumen here: only what the first fits found)
+    monkeypatch.setattr(track, "ENCLOSING_SCALES", ())
+    assert track._enclosing(img, curve, lumen, +1, det.half_width, 0.02) == (lumen, +1)
+    got, polarity = track._enclosing(img, curve, lumen, +1, det.half_width, 0.02,
+                                     others=[outer])
+    assert polarity == -1 and got is outer
+
+
+def _eccentric_tube():
+    """:data:`_ECCENTRIC_PROFILE` along a straight tube from the left border,
+    its midline at row 240, its end a round cap at col 450; and that end col."""
+    rows, cols = 480, 640
+    rr, cc = np.mgrid[0:rows, 0:cols].astype(float)
+    centre, end = 240.0, 450.0
+    across = rr - centre
+    # (past the end, the profile about the cap's centre: a round cap)
+    radial = np.where(cc > end, np.sign(across) * np.hypot(cc - end, across), across)
+    offsets = np.arange(-20.0, 20.25, 0.5)
+    img = np.interp(radial, offsets, _ECCENTRIC_PROFILE, left=0.808, right=0.808)
+    img += np.random.default_rng(2).normal(0.0, 0.004, img.shape)
+    return img.astype(np.float32), end
+
+
+def test_an_eccentric_hollow_tube_is_found_at_its_outer_walls():
+    """That profile along a straight tube: the start takes its outer pair,
+    not the lumen nor the pair of one outer edge and one lumen edge."""
+    img, end = _eccentric_tube()
+    centre = 240.0
+    r, look, _ = track.initialise(img)
+    assert look.polarity == -1
+    # (the outer pair about 22 px apart, the mixed one about 17.5)
+    assert look.mean_half_width > 10.0, look.mean_half_width
+    _, z = resample(r.curve)
+    inner = (z.real > 40) & (z.real < end - 40)
+    # (the outer pair's midpoint: 0.5 px to the thick side, as the profile has it)
+    assert np.abs(np.median(z.imag[inner]) + centre) < 1.0, np.median(z.imag[inner])
