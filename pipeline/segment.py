@@ -850,8 +850,9 @@ def _outline_wins(det: Detection | None, outline: Detection | None) -> bool:
 #: tube-like: a tube is 32-96 of them long (Table 1: 8-12 mm by 0.25-0.5 mm;
 #: 20 at least with a half-width a closing widened 1.6x), while a dark region
 #: beyond a dish's wall, filling a corner of the frame, was 10 (its width as
-#: large as its extent). The next structure is then looked at, up to
-#: :data:`CANDIDATES` in all, and the first stubby one kept if none is longer.
+#: large as its extent). The next structure is then looked at (as where a
+#: given base lies off it: :func:`_off_the_base`), up to :data:`CANDIDATES`
+#: in all, and the first one kept if none is better.
 TUBE_MIN_HW = 12.0
 CANDIDATES = 3
 
@@ -859,15 +860,30 @@ CANDIDATES = 3
 def _detect_in(mask: np.ndarray, f: int, base_hint, base_end, *,
                outline: bool = False) -> Detection | None:
     """:func:`detect` on a foreground ``mask`` at 1/``f`` resolution: the
-    largest structure, or the next where that is stubby (:data:`TUBE_MIN_HW`)."""
-    stubby = None
+    largest structure, or the next where that is stubby (:data:`TUBE_MIN_HW`)
+    or lies off a given base (:func:`_off_the_base`)."""
+    first = None
     for _ in range(CANDIDATES):
         det, filled = _detect_largest(mask, f, base_hint, base_end, outline=outline)
-        if det is None or det.found_length >= TUBE_MIN_HW * det.half_width:
-            return det if det is not None else stubby
-        stubby = stubby or det
+        if det is None:
+            return first
+        if (det.found_length >= TUBE_MIN_HW * det.half_width
+                and not _off_the_base(det, base_hint)):
+            return det
+        first = first or det
         mask = mask & ~filled
-    return stubby
+    return first
+
+
+def _off_the_base(det: Detection, base_hint) -> bool:
+    """Whether the base given (``--base``, (col, row) px) lies over two of
+    the structure's half-widths from it, off its line (:func:`_detect_largest`
+    carries a structure on to a base near it or on its line): the user
+    pointed at another structure, a fainter tube beside a larger one."""
+    if base_hint is None:
+        return False
+    hint = complex(from_image(float(base_hint[0]), float(base_hint[1])))
+    return float(np.min(np.abs(det.path - hint))) > 2.0 * det.half_width
 
 
 def _detect_largest(mask: np.ndarray, f: int, base_hint, base_end, *,

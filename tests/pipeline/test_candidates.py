@@ -86,3 +86,19 @@ def test_a_stubby_region_alone_is_still_found():
     det = detect(img)
     assert det is not None
     assert det.found_length < segment.TUBE_MIN_HW * det.half_width
+
+
+def test_a_base_given_on_a_fainter_tube_picks_it_over_a_larger_structure():
+    """A static dark rod, wider and longer than the tube, across the frame's
+    top: the detector takes it for the tube. Given ``--base`` at the tube's
+    base, the structure there is taken (the rod was kept, the base put at
+    its nearest point, 150 px off)."""
+    img = _tube(0.002)
+    rows, cols = img.shape
+    rod = np.zeros(img.shape, np.float32)
+    cv2.line(rod, (20, 60), (cols - 20, 60), 1.0, 30)
+    img = img * (1 - 0.5 * rod)
+    assert abs(detect(img).base - BASE) > 100            # the rod
+    det = detect(img, base_hint=(BASE.real, -BASE.imag))
+    assert abs(det.path[-1] - _tip(0.002)) < 2 * HALF_WIDTH, (det.path[-1], _tip(0.002))
+    assert abs(det.base - BASE) < 2.0, det.base
