@@ -577,6 +577,50 @@ def _cut_by_border(path_rc: np.ndarray, split: int, half_width: float, shape) ->
     return cut_by_border(start, start - path_rc[split + reach], half_width, shape)
 
 
+#: A base this close to the frame's edge (in tube half-widths, back along its
+#: tangent) that the tube enters from is at the edge
+#: (:func:`base_at_edge`) ...
+BORDER_BASE_HW = 2.0
+#: ... and as many more as the profiles across the tube reach beside it (up
+#: to 3.5 half-widths) times the tangent of its slant to the edge's normal
+#: (up to :data:`BORDER_CUT_MAX_DEG`): a tube entering at a slant has its
+#: first whole profile that far in (at 60 deg, 26 px in for a tube 8 px in
+#: half-width: left there, and the length 8 % short).
+BORDER_SLANT_HW = 4.0
+
+
+def edge_behind(base: complex, angle: float, shape) -> tuple[float, float]:
+    """How far back from ``base`` (px, y up), against the tangent ``angle``
+    (rad), the frame's edge lies, px (the nearest of the four edges it meets,
+    half a pixel beyond the outer pixels' centres; inf if none); and the
+    cosine of the tangent's angle to that edge's normal. ``shape``: the
+    frame's (rows, cols)."""
+    rows, cols = shape
+    col, row = base.real, -base.imag
+    back = -np.exp(1j * angle)
+    dc, dr = back.real, -back.imag
+    steps = []
+    if dc < 0:
+        steps.append(((col + 0.5) / -dc, -dc))
+    if dc > 0:
+        steps.append(((cols - 0.5 - col) / dc, dc))
+    if dr < 0:
+        steps.append(((row + 0.5) / -dr, -dr))
+    if dr > 0:
+        steps.append(((rows - 0.5 - row) / dr, dr))
+    return tuple(float(v) for v in min(steps)) if steps else (np.inf, 1.0)
+
+
+def base_at_edge(base: complex, angle: float, half_width: float, shape) -> float | None:
+    """How far back along its tangent the frame's edge lies from a base that
+    is at it (:data:`BORDER_BASE_HW`, :data:`BORDER_SLANT_HW`: the first
+    whole profile across a tube entering there), px; None for a base farther
+    in (or beyond the edge)."""
+    d, cos = edge_behind(base, angle, shape)
+    slant = np.tan(min(np.arccos(min(cos, 1.0)), np.radians(BORDER_CUT_MAX_DEG)))
+    return d if 0.0 < d <= (BORDER_BASE_HW + BORDER_SLANT_HW * slant) * half_width else None
+
+
 def cut_by_border(start_rc, heading_rc, half_width: float, shape) -> bool:
     """Whether a tube whose full width starts at ``start_rc`` (row, col) and
     runs back along ``heading_rc`` (row, col) to the border is cut obliquely

@@ -98,7 +98,14 @@ from .refine import (
     self_contact,
     widths_at,
 )
-from .segment import BORDER_BASE, HOLDER_STEP, PIPETTE_STEP, cut_by_border, detect
+from .segment import (
+    BORDER_BASE,
+    HOLDER_STEP,
+    PIPETTE_STEP,
+    base_at_edge,
+    cut_by_border,
+    detect,
+)
 
 #: :func:`pipeline.refine.antisymmetry` of the first frame across the tube
 #: found, above which it is taken for a relief (its edges are looked for only
@@ -1077,6 +1084,9 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
                 # frames taken for a short tube: its votes put the base 58 px
                 # into the pipette of a video that starts curled past a turn)
                 votes = _BaseVotes()
+            if pending is not None:
+                # (a tube entering from the frame's edge: its tangents carried back there)
+                votes.from_edge = result.base_source.startswith(BORDER_BASE)
             if old_look is not None and old_look.shear is not None and look.polarity == 0:
                 look = replace(look, shear=old_look.shear)  # the microscope's, not the tube's
             if old_look is not None and old_look.end_clear:
@@ -1320,6 +1330,31 @@ class _EndStepVotes:
         return look
 
 
+def _lean_from_edge(curve: Curve, half_width: float, shape) -> float:
+    """How far (rad) the tangent at the base of a tube entering from the
+    frame's edge (:func:`pipeline.segment.base_at_edge`) has turned since the
+    edge: its curvature over its first two half-widths times the distance
+    back to the edge; 0 for a base away from the edge.
+
+    The fits start the tube at its first whole profile, that far inside (26
+    px for a tube 8 px in half-width entering at 60 deg to the edge's
+    normal), where a tube held at the edge has turned already as it bends:
+    the first frames' base tangents, bent up to 30 deg, leaned into the
+    bend by up to 3 deg, and their median held it 0.9 deg off on every
+    frame. Only where the base lies a half-width or more from the edge (a
+    slanted entry): nearer, the turn is within the fits' own scatter, and
+    carrying it back did more harm than good (an independent renderer's
+    tube 2.7 px from the edge: a median 0.12 -> 0.26 deg)."""
+    d = base_at_edge(curve.base, curve.base_angle, half_width, shape)
+    if d is None or d < half_width or curve.length <= 2.0 * half_width:
+        return 0.0
+    basis = basis_of(curve)
+    smp = evaluate(curve, basis)
+    reach = 2.0 * half_width
+    phi = float(np.interp(reach, basis.u * curve.length, smp.phi))
+    return (phi - curve.base_angle) / reach * d
+
+
 @dataclass
 class _BaseVotes:
     """Where the first frames show the base (:data:`BASE_VOTE_FRAMES`)."""
@@ -1331,6 +1366,10 @@ class _BaseVotes:
     stages: list[complex] = field(default_factory=list)
     #: (|bend|, base tangent measured − the one in use), rad
     turns: list[tuple[float, float]] = field(default_factory=list)
+    #: whether the base is where the tube enters from the frame's edge (the
+    #: start found no holder): each tangent is then carried back to the edge
+    #: (:func:`_lean_from_edge`)
+    from_edge: bool = False
 
     def add(self, image: np.ndarray, curve: Curve, look: TubeLook,
             settings: TrackSettings, frame: int = 0, stage: complex = 0j) -> None:
@@ -1349,7 +1388,10 @@ class _BaseVotes:
         fit = refine(image, curve, look, iterations=6, free_base=True,
                      smoothing=BASE_SMOOTHING, tol_px=settings.tol_px)
         if _good(fit, look):
-            self.turns.append((abs(curve.coef[-1]), fit.curve.base_angle - curve.base_angle))
+            phi = fit.curve.base_angle - (_lean_from_edge(fit.curve, look.mean_half_width,
+                                                          image.shape[:2])
+                                          if self.from_edge else 0.0)
+            self.turns.append((abs(curve.coef[-1]), phi - curve.base_angle))
 
     def settled(self, history: list[Curve], stage: complex = 0j,
                 path: dict[int, complex] | None = None) -> tuple[complex | None, float]:

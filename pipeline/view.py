@@ -20,7 +20,7 @@ from dataclasses import replace
 import numpy as np
 
 from .centreline import Curve, basis_of, evaluate
-from .segment import BORDER_CUT_MAX_DEG
+from .segment import base_at_edge
 from .track import FrameTrack
 
 #: A frame's tube counts as short where its length is this much under the
@@ -115,18 +115,6 @@ def cut_by_border(results: list[FrameTrack], shape: tuple[int, int], disc=None
                     "edge or the field stop's lit disc): those frames are not measured")
 
 
-#: A base this close to the frame's edge (in tube half-widths, back along its
-#: tangent) that the tube enters from is carried back to the edge
-#: (:func:`base_to_border`) ...
-BORDER_BASE_HW = 2.0
-#: ... and as many more as the profiles across the tube reach beside it (up
-#: to 3.5 half-widths) times the tangent of its slant to the edge's normal
-#: (up to :data:`pipeline.segment.BORDER_CUT_MAX_DEG`): a tube entering at a
-#: slant has its first whole profile that far in (at 60 deg, 26 px in for a
-#: tube 8 px in half-width: left there, and the length 8 % short).
-BORDER_SLANT_HW = 4.0
-
-
 def base_to_border(results: list[FrameTrack], shape: tuple[int, int], half_width: float
                    ) -> tuple[list[FrameTrack], float]:
     """Every frame's centreline carried straight back, along its base tangent,
@@ -146,8 +134,8 @@ def base_to_border(results: list[FrameTrack], shape: tuple[int, int], half_width
     shape : (rows, cols)
         Size of the frames tracked, px.
     half_width : float
-        The tube's, px: a base more than :data:`BORDER_BASE_HW` of them from
-        the edge is left where it is.
+        The tube's, px: a base farther from the edge than
+        :func:`pipeline.segment.base_at_edge` allows is left where it is.
 
     Returns
     -------
@@ -161,9 +149,9 @@ def base_to_border(results: list[FrameTrack], shape: tuple[int, int], half_width
     rows, cols = shape
     out, gap = [], 0.0
     for r in results:
-        d, cos = (None, 1.0) if not r.ok else _back_to_edge(r.curve, rows, cols)
-        slant = np.tan(min(np.arccos(min(cos, 1.0)), np.radians(BORDER_CUT_MAX_DEG)))
-        if d is None or not 0.0 < d <= (BORDER_BASE_HW + BORDER_SLANT_HW * slant) * half_width:
+        d = None if not r.ok else base_at_edge(r.curve.base, r.curve.base_angle, half_width,
+                                                 (rows, cols))
+        if d is None:
             out.append(r)
             continue
         gap = gap or d
@@ -173,21 +161,3 @@ def base_to_border(results: list[FrameTrack], shape: tuple[int, int], half_width
             last_section=None))
     return out, gap
 
-
-def _back_to_edge(curve: Curve, rows: int, cols: int) -> tuple[float, float]:
-    """How far back from ``curve``'s base, against its base tangent, the
-    frame's edge lies, px (the nearest of the four edges it meets); and the
-    cosine of the tangent's angle to that edge's normal."""
-    col, row = curve.base.real, -curve.base.imag
-    back = -np.exp(1j * curve.base_angle)
-    dc, dr = back.real, -back.imag
-    steps = []
-    if dc < 0:
-        steps.append(((col + 0.5) / -dc, -dc))
-    if dc > 0:
-        steps.append(((cols - 0.5 - col) / dc, dc))
-    if dr < 0:
-        steps.append(((row + 0.5) / -dr, -dr))
-    if dr > 0:
-        steps.append(((rows - 0.5 - row) / dr, dr))
-    return tuple(float(v) for v in min(steps)) if steps else (np.inf, 1.0)
