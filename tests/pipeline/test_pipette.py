@@ -136,6 +136,18 @@ def test_the_hinge_is_where_a_clamped_tube_starts_to_bend(s0):
     assert pipette.motion_hinge(results[:4], 5.0, s0 + 40.0)[2] == np.inf
 
 
+def test_a_hinge_in_noisy_frames_is_not_spread_by_their_noise():
+    """Sixteen bent frames whose tangents scatter: each frame's own hinge
+    lies anywhere in a few px (their range 4 px, over HINGE_SPREAD_PX: the
+    holder was not cut, on an independent renderer's dim fluorescent tube
+    whose holder then passed for 91 px of it), but does not move with the
+    bend."""
+    results = _clamped_tracks(60.0, [0.0, *np.linspace(0.5, 3.0, 16)], noise=5e-3)
+    at, gain, spread = pipette.motion_hinge(results, 5.0, 100.0)
+    assert at == pytest.approx(60.0, abs=2.0) and gain > pipette.MIN_HINGE_GAIN
+    assert spread <= pipette.HINGE_SPREAD_PX
+
+
 def test_a_stiff_first_section_is_no_hinge():
     # the tube's own first 60 px, bending at 1/25 of the rest's curvature: it
     # seems to end earlier the more the tube bends
@@ -499,3 +511,34 @@ def test_a_hinge_nearer_the_tracked_base_than_two_widths_is_cut():
     short = [swap(r, curve=swap(r.curve, base=base - 0.5 * 2 * HW))
              for r in _clamped_tracks(0.5 * 2 * HW, [0.0, 0.5, 1.0, 2.0, 3.0], noise=1e-3)]
     assert pipette.drop_holder(short, lambda: img, HW)[1] is None
+
+
+
+def test_a_holder_the_hinge_tells_is_ended_where_its_profiles_step(monkeypatch):
+    """Where the first frame's profiles near the still stretch's end do not
+    tell a holder (here made so: that look is left out) but the bent frames'
+    hinge does (60 px from the tracked base), and the profiles along the
+    structure step 3 px further on, the holder's end is put where they step.
+    The hinge alone put a pipette's end 1.5 px short on an independent
+    renderer's scene (vignetting: the first look saw no step there)."""
+    rows, cols = 300, 600
+    results = [r.moved(100 - 150j)
+               for r in _clamped_tracks(60.0, [0.0, *np.linspace(0.5, 3.0, 8)])]
+    rr, cc = np.mgrid[0:rows, 0:cols].astype(float)
+    img = np.full((rows, cols), 0.8)
+    # the holder, wider and darker than the tube, along the first frame's line
+    img[(np.abs(rr - 150) <= 8) & (cc >= 100) & (cc <= 163)] = 0.3
+    img[(np.abs(rr - 150) <= 5) & (cc > 163) & (cc <= 460)] = 0.55
+    img = (img + np.random.default_rng(0).normal(0.0, 0.01, img.shape)).astype(np.float32)
+    looks = []
+    real = pipette.profile_change
+
+    def first_look_blind(*args, **kwargs):
+        looks.append(args[-1])
+        s, change = real(*args, **kwargs)
+        return (s, 0.0) if len(looks) == 1 else (s, change)
+
+    monkeypatch.setattr(pipette, "profile_change", first_look_blind)
+    cut, note = pipette.drop_holder(results, lambda: img, 5.0)
+    assert "its end placed where the profiles along it stepped" in note, note
+    assert abs(cut[0].curve.base - (163 - 150j)) < 1.0, cut[0].curve.base
