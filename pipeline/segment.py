@@ -624,27 +624,17 @@ def base_at_edge(base: complex, angle: float, half_width: float, shape) -> float
 def cut_by_border(start_rc, heading_rc, half_width: float, shape) -> bool:
     """Whether a tube whose full width starts at ``start_rc`` (row, col) and
     runs back along ``heading_rc`` (row, col) to the border is cut obliquely
-    by it there: its line meets the border within a half-width beyond where
-    its far edge would (``half_width`` · tan of its angle to the border's
-    normal, up to :data:`BORDER_CUT_MAX_DEG`). ``shape``: the image's (rows,
-    cols); ``half_width`` in its px."""
-    start = np.asarray(start_rc, dtype=float)
-    heading = np.asarray(heading_rc, dtype=float)
-    norm = float(np.hypot(*heading))
-    if norm == 0:
+    by it there: its line meets the border (:func:`edge_behind`) within a
+    half-width beyond where its far edge would (``half_width`` · tan of its
+    angle to the border's normal, up to :data:`BORDER_CUT_MAX_DEG`).
+    ``shape``: the image's (rows, cols); ``half_width`` in its px."""
+    (row, col), (d_row, d_col) = start_rc, heading_rc
+    if d_row == 0 and d_col == 0:
         return False
-    u = heading / norm
-    # the distance along u to each border it runs towards, and the cosine to
-    # that border's normal
-    hits = []
-    for axis, bound in ((0, 0.0), (0, shape[0] - 1.0), (1, 0.0), (1, shape[1] - 1.0)):
-        if abs(u[axis]) > 1e-9:
-            t = (bound - start[axis]) / u[axis]
-            if t >= 0:
-                hits.append((t, abs(u[axis])))
-    if not hits:
+    # (edge_behind looks back against a tangent: the heading's opposite)
+    t, cos = edge_behind(complex(col, -row), float(np.angle(complex(-d_col, d_row))), shape)
+    if not np.isfinite(t):
         return False
-    t, cos = min(hits)
     tan = np.tan(min(np.arccos(min(cos, 1.0)), np.radians(BORDER_CUT_MAX_DEG)))
     return bool(t <= half_width * (tan + 1.0))
 
