@@ -563,18 +563,22 @@ def _in_line(path_rc: np.ndarray, split: int, ratio: float, half_width: float) -
 BORDER_CUT_MAX_DEG = 80.0
 
 
-def _cut_by_border(path_rc: np.ndarray, split: int, half_width: float, shape) -> bool:
+def _slanted_step(path_rc: np.ndarray, split: int, half_width: float, shape) -> bool:
     """Whether the narrowing of ``path_rc`` before ``split`` (towards its first
     point, at the border) is the border cutting the tube obliquely
-    (:func:`cut_by_border`, the tube's line carried on from ``split``). A
+    (:func:`slanted_cut`, the tube's line carried on from ``split``). A
     tube 15 px wide entering at 60 deg to the normal narrowed over 13 px on
     its way to the border, and that narrowing was taken for a pipette's
     step: the base put 18 px inside the frame."""
     reach = int(max(3, round(2 * half_width)))
     if split + reach >= len(path_rc):
         return False
-    start = path_rc[split].astype(float)
-    return cut_by_border(start, start - path_rc[split + reach], half_width, shape)
+    (row, col), (row_on, col_on) = path_rc[split], path_rc[split + reach]
+    # (px, y up: the tangent runs from the step on along the tube)
+    tangent = complex(col_on - col, row - row_on)
+    if tangent == 0:
+        return False
+    return slanted_cut(complex(col, -row), float(np.angle(tangent)), half_width, shape)
 
 
 #: A base this close to the frame's edge (in tube half-widths, back along its
@@ -617,26 +621,25 @@ def base_at_edge(base: complex, angle: float, half_width: float, shape) -> float
     whole profile across a tube entering there), px; None for a base farther
     in (or beyond the edge)."""
     d, cos = edge_behind(base, angle, shape)
-    slant = np.tan(min(np.arccos(min(cos, 1.0)), np.radians(BORDER_CUT_MAX_DEG)))
-    return d if 0.0 < d <= (BORDER_BASE_HW + BORDER_SLANT_HW * slant) * half_width else None
+    return (d if 0.0 < d <= (BORDER_BASE_HW + BORDER_SLANT_HW * _slant(cos)) * half_width
+            else None)
 
 
-def cut_by_border(start_rc, heading_rc, half_width: float, shape) -> bool:
-    """Whether a tube whose full width starts at ``start_rc`` (row, col) and
-    runs back along ``heading_rc`` (row, col) to the border is cut obliquely
-    by it there: its line meets the border (:func:`edge_behind`) within a
+def _slant(cos: float) -> float:
+    """The tangent of the angle whose cosine is ``cos`` (a tube's to the
+    frame edge's normal), the angle at most :data:`BORDER_CUT_MAX_DEG`."""
+    return float(np.tan(min(np.arccos(min(cos, 1.0)), np.radians(BORDER_CUT_MAX_DEG))))
+
+
+def slanted_cut(base: complex, angle: float, half_width: float, shape) -> bool:
+    """Whether a tube whose full width starts at ``base`` (px, y up), its
+    tangent there ``angle`` (rad), is cut obliquely by the frame's edge
+    behind it: its line meets the edge (:func:`edge_behind`) within a
     half-width beyond where its far edge would (``half_width`` · tan of its
-    angle to the border's normal, up to :data:`BORDER_CUT_MAX_DEG`).
-    ``shape``: the image's (rows, cols); ``half_width`` in its px."""
-    (row, col), (d_row, d_col) = start_rc, heading_rc
-    if d_row == 0 and d_col == 0:
-        return False
-    # (edge_behind looks back against a tangent: the heading's opposite)
-    t, cos = edge_behind(complex(col, -row), float(np.angle(complex(-d_col, d_row))), shape)
-    if not np.isfinite(t):
-        return False
-    tan = np.tan(min(np.arccos(min(cos, 1.0)), np.radians(BORDER_CUT_MAX_DEG)))
-    return bool(t <= half_width * (tan + 1.0))
+    angle to the edge's normal, up to :data:`BORDER_CUT_MAX_DEG`).
+    ``shape``: the frame's (rows, cols); ``half_width`` in its px."""
+    t, cos = edge_behind(base, angle, shape)
+    return bool(np.isfinite(t) and t <= half_width * (_slant(cos) + 1.0))
 
 
 def _narrow_and_holder(width: np.ndarray, split: int, ratio: float, trim: int,
@@ -1009,7 +1012,7 @@ def _detect_largest(mask: np.ndarray, f: int, base_hint, base_end, *,
         source = AMBIGUOUS_BASE
     elif (ratio > 1.15 and split > min_pipette and _touches_border(path_rc[0], shape, margin)
           and _in_line(path_rc, split, ratio, half_width)
-          and not _cut_by_border(path_rc, split, half_width, shape)):
+          and not _slanted_step(path_rc, split, half_width, shape)):
         source = PIPETTE_STEP
     elif (ratio < 1 / HOLDER_RATIO and split > min_pipette
           and _touches_border(path_rc[0], shape, margin)):

@@ -103,8 +103,8 @@ from .segment import (
     HOLDER_STEP,
     PIPETTE_STEP,
     base_at_edge,
-    cut_by_border,
     detect,
+    slanted_cut,
 )
 
 #: :func:`pipeline.refine.antisymmetry` of the first frame across the tube
@@ -696,10 +696,8 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
         reach = max(4.0 * hw0, _edge_gap(r) + 2.0 * hw0)
         start = r.curve.base
         r = replace(r, curve=locate_base(image, r.curve, look, reach=reach))
-        back = -np.exp(1j * r.curve.base_angle)
         if (source == BORDER_BASE and abs(r.curve.base - start) > 2.0 * hw0
-                and not cut_by_border((-r.curve.base.imag, r.curve.base.real),
-                                      (-back.imag, back.real), hw0, image.shape)):
+                and not slanted_cut(r.curve.base, r.curve.base_angle, hw0, image.shape)):
             # (a tube the border cuts obliquely begins its full width that far
             # in: it is carried on to the border later, as any other)
             source = "where the tube's edges begin (the mask ran on into a pipette)"
@@ -1083,10 +1081,8 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
                 # lost since, may have been on something else (a curl's first
                 # frames taken for a short tube: its votes put the base 58 px
                 # into the pipette of a video that starts curled past a turn)
-                votes = _BaseVotes()
-            if pending is not None:
                 # (a tube entering from the frame's edge: its tangents carried back there)
-                votes.from_edge = result.base_source.startswith(BORDER_BASE)
+                votes = _BaseVotes(from_edge=result.base_source.startswith(BORDER_BASE))
             if old_look is not None and old_look.shear is not None and look.polarity == 0:
                 look = replace(look, shear=old_look.shear)  # the microscope's, not the tube's
             if old_look is not None and old_look.end_clear:

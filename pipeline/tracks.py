@@ -274,7 +274,7 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
             # (also tracked on the frames as they are where nothing was measured
             # on it: a reticle's line, which the tube may cross)
             found = _past_still(frames, still, base_hint, settings, joints,
-                                track_hidden=not unmeasured)
+                                also_plain=unmeasured)
             if isinstance(found, str):
                 still_note = f"{still_note}; {found}"
             else:
@@ -466,7 +466,7 @@ def _stood_still(frames, results, det):
 HELD_AT_END_HW = 3.0
 
 
-def _past_still(frames, still, base_hint, settings, joints, track_hidden=True):
+def _past_still(frames, still, base_hint, settings, joints, also_plain=False):
     """The video tracked again with the structure that stood still hidden
     (:mod:`pipeline.static_mask`): a faint tube next to a holder, a fibre or a
     scratch that stands out more.
@@ -475,8 +475,8 @@ def _past_still(frames, still, base_hint, settings, joints, track_hidden=True):
     found past it may stand still too (the rest of a fibre the first track
     followed only part of): it is hidden as well, up to :data:`HIDDEN_MAX`
     structures in all. The tube is found on the frames with them hidden, and
-    tracked there too; with ``track_hidden`` False also on the frames as they
-    are, and the track that measured more frames kept (a structure the tube
+    tracked there too; with ``also_plain`` also on the frames as they are,
+    and the track that measured more frames kept (a structure the tube
     crosses, hidden, hides the tube there; one the tube lies along may draw
     its fit, shown). Returns
     ``(frames, results, detection, note)``, the frames being those tracked;
@@ -500,7 +500,7 @@ def _past_still(frames, still, base_hint, settings, joints, track_hidden=True):
     else:
         return f"with it hidden, what was found next stood still too ({HIDDEN_MAX} hidden)"
     tracked = hidden
-    if not track_hidden and not all(r.ok for r in results):
+    if also_plain and not all(r.ok for r in results):
         plain = list(track_frames(iter(frames), base_hint=base_hint, base_end=base_end,
                                   first_detection=det, settings=settings, joints=joints))
         if sum(r.ok for r in plain) > sum(r.ok for r in results):
