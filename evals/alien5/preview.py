@@ -4,39 +4,17 @@
     python preview.py OUTDIR [--only NAME ...] [--truth]
 """
 import argparse
-import glob
 import json
 import os
-import re
 
 import cv2
 import numpy as np
 import pandas as pd
 
+from verify import read_back  # (the same reader verify.py checks the scenes with)
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 SCENES = os.path.join(HERE, 'scenes')
-
-
-def natural(s):
-    return [int(t) if t.isdigit() else t for t in re.split(r'(\d+)', s)]
-
-
-def read_frames(path):
-    if os.path.isdir(path):
-        fs = sorted(glob.glob(os.path.join(path, '*')), key=natural)
-        return [cv2.imread(f, cv2.IMREAD_UNCHANGED) for f in fs]
-    if path.endswith('.tif'):
-        import tifffile
-        a = tifffile.imread(path)
-        return list(a)
-    cap = cv2.VideoCapture(path)
-    out = []
-    while True:
-        ok, fr = cap.read()
-        if not ok:
-            break
-        out.append(fr)
-    return out
 
 
 def to8(img):
@@ -62,7 +40,7 @@ def main():
             continue
         d = os.path.join(SCENES, name)
         meta = json.load(open(os.path.join(d, 'scene.json')))
-        frames = read_frames(os.path.join(d, meta['input']))
+        frames, _ = read_back(os.path.join(d, meta['input']))
         n = len(frames)
         idx = [0, n // 2, n - 1]
         tiles = []
