@@ -173,6 +173,11 @@ TIP_STIFF_MIN_PX = 30.0
 #: low contrast, 800 px: max 3.3 → 8.4°). The 132 scenes that do not curl
 #: past a turn are unchanged.
 TIP_RATIO_WEIGHT = 1.0
+#: The same hold for a tube whose joints are not known (:func:`_tail_hold`):
+#: wherever the crossing hides at least this many half-widths at its end, that
+#: stretch's mean curvature is held at the multiple of the stretch before it
+#: that the last shape seen whole had.
+TAIL_HOLD_MIN_HW = 2.0
 #: Standard deviation per median absolute deviation of a normal distribution.
 MAD_TO_SD = float(1.0 / ndtri(0.75))
 #: Profile smoothing, px, with which the tube's end is placed again once a wider
@@ -566,7 +571,7 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
            free_base: bool = False, avoid_contact: bool = False,
            tip_window: float | None = None, tip_stiffness: float = TIP_STIFFNESS,
            output_stiffness: float = TIP_OUTPUT_STIFFNESS,
-           tip_ratio: float | None = None) -> Refined:
+           tip_ratio: float | None = None, mode: np.ndarray | None = None) -> Refined:
     """Fit ``curve`` to the tube in ``image``, starting from the curve itself.
 
     Parameters
@@ -622,6 +627,12 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
         curvature as a multiple of the previous section's (see
         :func:`section_ratio`), held on every round on which fewer than half of
         the last section's profiles are left (:data:`TIP_RATIO_WEIGHT`).
+    mode : (K,) ndarray, optional
+        With ``avoid_contact`` and no ``tip_ratio``: the coefficients of the
+        tube's last shape seen whole (the same spline). Where the crossing
+        hides the tube's end stretch, that stretch's mean curvature is held
+        at the multiple of the stretch before it that ``mode`` gives
+        (:func:`_tail_hold`).
     """
     hw = look.mean_half_width
     window = 0.5 * hw if window is None else window
@@ -669,13 +680,14 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
         edges = edge_pairs(profiles, step, hw_u, polarity=look.polarity, window=window,
                            smooth_px=look.smooth_px, facing=facing, directions=normals,
                            width_tol=width_tol, min_strength=min_strength)
-        dropped = np.zeros(idx.size, bool)
+        contact = np.zeros(idx.size, bool)
         if avoid_contact:
             # (the 2 px spare also holds the default strips' ±1 px)
-            dropped = contact_mask(smp.z, idx, reach=hw * (2 + width_tol) + window + 2.0
+            contact = contact_mask(smp.z, idx, reach=hw * (2 + width_tol) + window + 2.0
                                    + max(look.strip_half_px - STRIP_STEP_PX, 0.0),
                                    gap=basis.u[1] * curve.length, normals=normals,
                                    half_width=hw)
+        dropped = contact.copy()
         if shown is None and look.polarity == 0:
             # a relief whose shear is not known yet: this frame's own edges may
             # tell it (where the tube runs along it, and fades, for the first time)
@@ -749,10 +761,16 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
         rough = basis.roughness + tip_stiffness * tip_rough
         lhs[:k, :k] += pen * rough
         rhs[:k] -= pen * rough @ curve.coef
+        held_tail = None
         if hold is not None and in_last.any() and valid[in_last].mean() < 0.5:
-            w_hold = TIP_RATIO_WEIGHT * np.trace(lhs[:k, :k]) / k / (hold @ hold)
-            lhs[:k, :k] += w_hold * np.outer(hold, hold)
-            rhs[:k] -= w_hold * hold * (hold @ curve.coef)
+            held_tail = hold
+        elif hold is None and mode is not None and mode.size == k and contact.any():
+            held_tail = _tail_hold(mode, curve.joints, u, contact, hw / curve.length)
+        if held_tail is not None:
+            w_hold = (TIP_RATIO_WEIGHT * np.trace(lhs[:k, :k]) / k
+                      / (held_tail @ held_tail))
+            lhs[:k, :k] += w_hold * np.outer(held_tail, held_tail)
+            rhs[:k] -= w_hold * held_tail * (held_tail @ curve.coef)
 
         if free_base:
             # the base direction's B_0 joins the penalty: φ(0) then follows the
@@ -918,6 +936,36 @@ def _end_offset(a_mat, b_vec, weights, lhs, rhs, damp, near_end) -> float:
     a_e, b_e = a_mat[rows], b_vec[rows]
     x = np.linalg.solve(lhs - a_e.T @ a_e + np.diag(damp), rhs - a_e.T @ b_e)
     return float(np.sum(b_e - a_e @ x) / np.sum(weights[rows]))
+
+
+def _tail_hold(mode: np.ndarray, joints: tuple[float, ...], u: np.ndarray,
+               hidden: np.ndarray, hw_u: float) -> np.ndarray | None:
+    """The row H with ``H @ coef = 0`` holding a hidden end stretch's mean
+    curvature at the multiple of the stretch before it (as long, or the rest
+    of the tube if shorter) that the shape ``mode`` has; None where the
+    profiles at the end are not hidden over at least
+    :data:`TAIL_HOLD_MIN_HW` half-widths (``hw_u``: a half-width as a
+    fraction of the length), or the stretch before turns less than
+    :data:`TIP_RATIO_MIN_TURN` in ``mode``.
+
+    ``u``: the profiles' positions (ascending fractions of the length);
+    ``hidden``: which of them the crossing hides."""
+    if not hidden[-1]:
+        return None
+    seen = np.flatnonzero(~hidden)
+    if not seen.size:
+        return None
+    # (rounded, so that the turns' rows are reused from frame to frame)
+    start = round(float(u[seen[-1] + 1]), 3)
+    if 1.0 - start < TAIL_HOLD_MIN_HW * hw_u:
+        return None
+    span = min(1.0 - start, start)
+    turns, spans = _turns_between(mode.size, joints, (start - span, start, 1.0))
+    before, last = turns @ mode
+    if abs(before) < TIP_RATIO_MIN_TURN:
+        return None
+    ratio = (last / spans[1]) / (before / spans[0])
+    return turns[1] / spans[1] - ratio * turns[0] / spans[0]
 
 
 def _section_turns(n_coef: int, joints: tuple[float, ...]):

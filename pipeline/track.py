@@ -13,7 +13,11 @@ Per frame, only the work the frame needs (cheapest first):
    (the prediction) keeps the order along the tube and the unwrapped angle.
    A jointed tube's last section, when the crossing hides it, keeps its
    curvature in the ratio to the section before that it had when last seen
-   whole (``tip_ratio`` of :func:`pipeline.refine.refine`);
+   whole (``tip_ratio`` of :func:`pipeline.refine.refine`); a tube whose
+   joints are not known, the stretch the crossing hides at its end, in the
+   ratio to the stretch before it that the last shape seen whole had
+   (``mode``). Of fits that fit the edges alike, the one from the prediction
+   is kept (:data:`RESIDUAL_TIE`);
 3. **wide** — if the fit fails its checks, search again with a wider window
    on the whole frame, from the prediction and from the previous frame;
 4. **redetect** — if that fails too, find the tube from scratch
@@ -224,6 +228,12 @@ UNSETTLED_MOVE_PX = 0.5
 #: 0.05-0.2 % between frames where the end is seen clearly (a free fit 0.24 %
 #: long was 0.8 deg off, the held one 3.2; one 0.47 % long 1.8 deg, held 0.1).
 HELD_LENGTH_STEP = 0.003
+#: Fits at a crossing whose residuals are within this factor of each other
+#: fit the edges alike: where the tube lies over itself its end hides, and
+#: the edges do not tell how far round it has turned. Of those, the fit from
+#: the prediction (temporal continuity) is kept, over one that ran its end on
+#: into the other layer or one from the last shape.
+RESIDUAL_TIE = 1.25
 #: Fractions of the detection mask's width tried as the tube's width on the
 #: first fit (the strongest edge pairs win): the mask of a strong, thin band
 #: spreads over its blurred skirts, to twice the width of a 6 px opaque tube;
@@ -1011,6 +1021,8 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
     widths = None if given else WidthRecord()
     # (joints, last section's curvature over the one before's) when last seen whole
     tip_ratio: tuple[tuple[float, ...], float] | None = None
+    # the last shape seen whole (not at a crossing): what a hidden end follows
+    whole: Curve | None = None
     # where the base was found on the first frames, and those frames' results
     # (with the frames) held back until it is settled; not when it was given
     votes = _BaseVotes()
@@ -1069,10 +1081,11 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
         restart_end = held_base if base_hint is None and held_base is not None else base_end
         result = _track_one(index, frame, look, history, hint, restart_end, det, settings,
                             known, search, tip_ratio, widths, typical,
-                            float(np.median(lengths)) if history and lengths else None)
+                            float(np.median(lengths)) if history and lengths else None,
+                            whole)
         if isinstance(result, tuple):  # (re)initialised: a new look, a new history
             old_look, (result, look) = look, result
-            history, residuals, lengths = [], [], []
+            history, residuals, lengths, whole = [], [], [], None
             # (the stage measured from this start's region: an earlier start's
             # may have been on something else)
             carried, drift, measured, looked = followed(), None, {}, False
@@ -1131,6 +1144,7 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
             if not result.crossing:
                 ratio = section_ratio(result.tracked)
                 tip_ratio = None if ratio is None else (result.tracked.joints, ratio)
+                whole = result.tracked
             # the pipette holds the base still: a restart finds the tube from the
             # same base, so the ends cannot swap (which would flip the angle's sign)
             held_base = hint if base_hint is not None else _base_col_row(result.curve)
@@ -1688,7 +1702,8 @@ def _from_later(image: np.ndarray, later: Curve, look: TubeLook, settings: Track
 
 def _track_one(index, frame, look, history, base_hint, base_end, detection, settings,
                known, search=False, tip_ratio=None, widths: WidthRecord | None = None,
-               typical_residual: float | None = None, typical_length: float | None = None):
+               typical_residual: float | None = None, typical_length: float | None = None,
+               whole: Curve | None = None):
     if look is None or not history:
         image = as_float(frame)
         init = initialise(image, base_hint=base_hint, base_end=base_end, detection=detection,
@@ -1735,6 +1750,9 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
     crossing = self_contact(pred, hw)
     # a section the crossing hides keeps its curvature in step with the one before
     held = tip_ratio[1] if tip_ratio is not None and tip_ratio[0] == pred.joints else None
+    # without that ratio, the last shape seen whole tells a hidden end's curvature
+    mode = (whole.coef if held is None and whole is not None
+            and (whole.joints, whole.coef.size) == (pred.joints, pred.coef.size) else None)
     # fast: refine the prediction inside the region it can occupy
     # the crop must hold where the tube can have moved: twice the last step's
     # tip motion; a fit that reaches the crop's edge anyway is redone on the frame
@@ -1751,7 +1769,8 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
     rounds = settings.rounds if len(history) >= 2 else settings.first_rounds
     tol = settings.tol_px
     r = refine(crop, pred, look, origin=(c0, r0), iterations=rounds, avoid_contact=crossing,
-               tol_px=settings.fast_tol_px if len(history) >= 2 else tol, tip_ratio=held)
+               tol_px=settings.fast_tol_px if len(history) >= 2 else tol, tip_ratio=held,
+               mode=mode)
     stage = "crossing" if crossing else "fast"
     work = crop.size / frame.size
     whole = (r0, r1, c0, c1) == (0, frame.shape[0], 0, frame.shape[1])
@@ -1770,14 +1789,14 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
         for start in starts:
             cands.append(refine(image, start, look, window=1.5 * hw, iterations=10,
                                 avoid_contact=crossing or self_contact(start, hw),
-                                tol_px=tol, tip_ratio=held))
+                                tol_px=tol, tip_ratio=held, mode=mode))
         stage = "wide"
         held_fits = []
         if typical_length is not None and (crossing or not any(accept(c) for c in cands)):
             # (also where no fit keeps the tube's length: a faint tip's end
             # found in the noise beyond it, or short of it)
             held_fits, freed = _held_length_fits(image, starts, look, typical_length, tol, held,
-                                                 avoid_contact=crossing)
+                                                 avoid_contact=crossing, mode=mode)
             if crossing:
                 cands += freed
             else:
@@ -1791,8 +1810,8 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
                               <= HELD_LENGTH_STEP * typical_length):
             # the length held wins unless freeing it fits the edges better
             passed = [f for f in held_fits if accept(f)]
-            h = min(passed, key=lambda f: f.residual_px) if passed else None
-            if h is not None and (not accept(r) or h.residual_px <= r.residual_px):
+            h = _least_residual(passed)
+            if h is not None and (not accept(r) or h.residual_px <= RESIDUAL_TIE * r.residual_px):
                 r, stage = h, "length held"
         work = 1.0
         # the frame after a start (no velocity yet) also gets a fresh detection
@@ -1874,6 +1893,16 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
                       end_offset=r.end_offset, end_steps=r.end_steps,
                       told_offset=r.told_offset, end_profile=r.end_profile,
                       cap_shape=r.cap_shape)
+
+
+def _least_residual(fits: list[Refined]) -> Refined | None:
+    """Of ``fits`` (in order of preference: the one from the prediction
+    first), the first whose residual is within :data:`RESIDUAL_TIE` of the
+    least; None if there are none."""
+    if not fits:
+        return None
+    least = min(f.residual_px for f in fits)
+    return next(f for f in fits if f.residual_px <= RESIDUAL_TIE * least)
 
 
 def _reported(r: Refined) -> Curve:
@@ -2064,8 +2093,8 @@ HELD_VIEW_U = 0.5
 
 
 def _held_length_fits(image, starts, look: TubeLook, length: float, tol: float,
-                      tip_ratio: float | None, *, avoid_contact: bool = True
-                      ) -> tuple[list[Refined], list[Refined]]:
+                      tip_ratio: float | None, *, avoid_contact: bool = True,
+                      mode: np.ndarray | None = None) -> tuple[list[Refined], list[Refined]]:
     """Fits of a tube that crosses itself from each of ``starts`` with its
     length held at ``length`` (the tube's own on the last frames where it did
     not cross itself), px; and the fits freed again from each of those.
@@ -2080,11 +2109,11 @@ def _held_length_fits(image, starts, look: TubeLook, length: float, tol: float,
     for start in starts:
         fit = refine(image, start.with_params(start.coef, length), look,
                      window=1.5 * look.mean_half_width, iterations=10, fit_length=False,
-                     avoid_contact=avoid_contact, tol_px=tol, tip_ratio=tip_ratio)
+                     avoid_contact=avoid_contact, tol_px=tol, tip_ratio=tip_ratio, mode=mode)
         held.append(replace(fit, length_held=True))
         if avoid_contact:
             freed.append(refine(image, fit.curve, look, iterations=10, avoid_contact=True,
-                                tol_px=tol, tip_ratio=tip_ratio))
+                                tol_px=tol, tip_ratio=tip_ratio, mode=mode))
     return held, freed
 
 
