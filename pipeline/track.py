@@ -234,6 +234,12 @@ HELD_LENGTH_STEP = 0.003
 #: the prediction (temporal continuity) is kept, over one that ran its end on
 #: into the other layer or one from the last shape.
 RESIDUAL_TIE = 1.25
+#: A fit whose length is off the tube's own (on the last frames where it did
+#: not cross itself) by more than this fraction is fitted again with the
+#: length held, and the held fit kept if it fits the edges as well
+#: (:data:`RESIDUAL_TIE`): lengths jitter by 0.05-0.2 % between frames, and
+#: a tip run onto a holder found its end on the holder's far edge, 1.8 % on.
+LENGTH_JUMP = 0.01
 #: Fractions of the detection mask's width tried as the tube's width on the
 #: first fit (the strongest edge pairs win): the mask of a strong, thin band
 #: spreads over its blurred skirts, to twice the width of a 6 px opaque tube;
@@ -1833,6 +1839,19 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
         cand = _redetect(image, history[-1], look, settings)
         if cand is not None and accept(cand) and _score(cand) > _score(r):
             r, stage, work = cand, "redetect", 1.0
+    if (typical_length is not None and not r.length_held and accept(r)
+            and abs(r.curve.length - typical_length) > LENGTH_JUMP * typical_length
+            and abs(last_length - typical_length) <= LENGTH_JUMP * typical_length):
+        # a tube keeps its length from frame to frame: an end found this far
+        # off is on something the tip has run onto (a holder's far edge)
+        # (not while the lengths themselves are settling: the first frames'
+        # still run into the holder until the base is voted on)
+        image = as_float(frame) if image is None else image
+        held_fits, _ = _held_length_fits(image, (r.curve, pred), look, typical_length, tol,
+                                         held, avoid_contact=crossing, mode=mode)
+        h = _least_residual([f for f in held_fits if accept(f)])
+        if h is not None and h.residual_px <= RESIDUAL_TIE * r.residual_px:
+            r, stage, work = h, "length held", 1.0
     if not accept(r):
         reason = ("lost: the tube hides too much of itself" if r.coverage < MIN_COVERAGE
                   else "lost: the tube's length jumped (end not found)"
