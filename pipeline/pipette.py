@@ -40,11 +40,13 @@ a pixel for a few widths, and the hinge fit then finds it at the tracked base.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import replace
 from functools import cache
 
 import numpy as np
-from scipy.ndimage import map_coordinates
+from scipy.ndimage import gaussian_filter1d, map_coordinates
+from scipy.signal import find_peaks
 
 from .centreline import Curve, basis_of, cut_base, evaluate, resample
 from .profiles import sample_lines
@@ -133,6 +135,22 @@ MOTION_FRAMES = 24
 #: video that does not bend cannot tell a holder from a first section of other
 #: walls, whose profiles step too.
 PROFILE_MIN_BEND_DEG = 20.0
+#: Where the motion cannot tell a holder (a tube bent too little, a holder
+#: the camera shakes with it), a straight stretch at the tracked structure's
+#: start whose edges lie at least this many times as far apart as the tube's
+#: past it does (:func:`wide_holder_end`): no tube's sections differ by as much
+#: (Table 1: at most 1.25, 810 against 650 µm), where glass capillaries the
+#: tube is pushed into measured 1.5-1.6 on an independent renderer's scenes
+#: (the detection's mask, read off a threshold, gave them 1.3-1.4) ...
+HOLDER_EDGE_RATIO = 1.35
+#: ... on this share of its profiles from the structure's start on.
+HOLDER_EDGE_SHARE = 0.8
+#: An edge there is a peak of the profile's gradient of at least this share
+#: of the tube's own edges' (their median over the tube's share of the curve).
+HOLDER_EDGE = 0.25
+#: The profiles' spacing across the tube, px, and their smoothing (px).
+EDGE_STEP_PX = 0.5
+EDGE_SMOOTH_PX = 1.0
 #: The tube past the holder, from this many of its half-widths past the
 #: holder's end on (and as far short of its own end), gives the holder's axis
 #: where it turns by at most
@@ -304,6 +322,73 @@ def _sampled(curve: Curve, spacing_px: float = 1.0):
     basis = basis_of(curve, max(n, 2))
     smp = evaluate(curve, basis)
     return basis.u * curve.length, smp.z, smp.phi, smp.normal
+
+
+def wide_holder_end(image: np.ndarray, curve: Curve, half_width: float
+                    ) -> tuple[float, float] | None:
+    """Where a holder wider than the tube ends along ``curve`` (px of arc
+    length from its start), and how many times the tube's width its edges lie
+    apart; None where the curve's first stretch shows none (see
+    :data:`HOLDER_EDGE_RATIO`).
+
+    Each profile across the curve (to four half-widths on each side) is
+    reduced to its edges, the peaks of its gradient, and their span (the
+    outermost two's distance). The holder ends at the largest step down in
+    the span (its median over a tube width before against after) along the
+    curve's first part (the tube's share, :data:`MIN_TUBE_SHARE`, left past
+    it); the tube's width is the span over the two widths past the step, and
+    the holder's span must be :data:`HOLDER_EDGE_RATIO` times that on
+    :data:`HOLDER_EDGE_SHARE` of the profiles from the structure's start."""
+    arc, z, _, normal = _sampled(curve)
+    d = np.arange(-4.0 * half_width, 4.0 * half_width + 0.5 * EDGE_STEP_PX, EDGE_STEP_PX)
+    pts = z[:, None] + normal[:, None] * d[None, :]
+    prof = map_coordinates(image, [-pts.imag.ravel(), pts.real.ravel()], order=1,
+                           mode="nearest").reshape(pts.shape)
+    grad = np.abs(np.gradient(gaussian_filter1d(prof, EDGE_SMOOTH_PX / EDGE_STEP_PX, axis=1),
+                              EDGE_STEP_PX, axis=1))
+    far = arc > (1.0 - MIN_TUBE_SHARE) * curve.length
+    k = max(2, int(round(2 * half_width)))      # a tube width, in profiles 1 px apart
+    last = int(np.searchsorted(arc, (1.0 - MIN_TUBE_SHARE) * curve.length))
+    if far.sum() < 4 or last - k <= MIN_WIDTHS * k:
+        return None
+    own = np.minimum(np.where(d < 0, grad, 0).max(1), np.where(d > 0, grad, 0).max(1))
+    floor = HOLDER_EDGE * float(np.median(own[far]))
+    apart = max(1, int(round(1.0 / EDGE_STEP_PX)))
+    span = np.full(min(last + 2 * k, arc.size), np.nan)
+    for i in range(span.size):
+        e = d[find_peaks(grad[i], height=floor, distance=apart)[0]]
+        if e.size >= 2:
+            span[i] = e[-1] - e[0]
+    windows = np.lib.stride_tricks.sliding_window_view(span, k)
+    with warnings.catch_warnings():
+        # (a window without edges has no median: NaN, never the step)
+        warnings.simplefilter("ignore", RuntimeWarning)
+        level = np.nanmedian(windows, axis=1)
+    at = np.arange(int(MIN_WIDTHS * k), last - k)
+    ratio = level[at - k] / level[at]
+    if not np.isfinite(ratio).any():
+        return None
+    j = int(at[np.nanargmax(ratio)])
+    # (the medians step over half a window: the step itself is the first
+    # profile past there narrower than halfway between the two)
+    half = 0.5 * (level[j - k] + level[j])
+    narrow = np.flatnonzero(span[j:j + k] < half)
+    j += int(narrow[0]) if narrow.size else 0
+    past = span[j:j + 2 * k]
+    if np.isnan(past).mean() > 0.5:
+        return None
+    width = float(np.nanmedian(past))
+    wide = span[:j] >= HOLDER_EDGE_RATIO * width
+    if width <= 0 or wide.mean() < HOLDER_EDGE_SHARE:
+        return None
+    s_end = float(arc[j])
+    # (not where the tube lies over itself: a coil over the base is a wider
+    # structure too; the rest: farther along than a half turn of that reach)
+    reach = 4 * half_width
+    stretch, rest = z[arc <= s_end], z[arc > s_end + np.pi * reach]
+    if rest.size and np.abs(stretch[:, None] - rest[None, :]).min() < reach:
+        return None
+    return s_end, float(np.nanmedian(span[:j][wide]) / width)
 
 
 def profile_change(image: np.ndarray, curve: Curve, half_width: float, upto: float
@@ -676,6 +761,22 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
                     f"{wobble * px:.1f} px, its drift aside)")
             told = (f"the profiles along the tracked structure stepped by {change:.0f}x "
                     f"their scatter {s * px:.0f} px from its start, and {kept}")
+    if told is None:
+        # the motion did not tell, or could not (a tube bent too little, a
+        # holder the camera shakes): a straight stretch at the structure's
+        # start whose edges lie wider apart than any section's tells it
+        found = wide_holder_end(first_frame(), first, half_width)
+        if found is not None:
+            s, ratio = found
+            at, change = profile_change(first_frame(), first, half_width,
+                                        s + HOLDER_REACH_HW * half_width)
+            placed = change >= MIN_CHANGE and abs(at - s) <= half_width
+            s = at if placed else s
+            profiled = True
+            told = (f"the tracked structure's first {s * px:.0f} px had its edges {ratio:.2f}x "
+                    "as far apart as the tube's past them"
+                    + (f", and its profiles stepped there by {change:.0f}x their scatter"
+                       if placed else ""))
     if (told is None or (s < STEP_WIDTHS * 2 * half_width and not profiled)
             or first.length - s < MIN_TUBE_SHARE * first.length):
         return [r.moved(r.stage_shift - origin) for r in results], None

@@ -79,7 +79,9 @@ class Scene:
     seed : int
         Seed of every random element (noise, flicker, dust).
     pipette_ratio : float
-        Pipette outer radius as a fraction of the tube's outer radius at its base.
+        Pipette outer radius as a fraction of the tube's outer radius at its
+        base: under 1, the tube is slid over the pipette; over 1, it is pushed
+        into the pipette and shows through its glass.
     drift_px : float
         Amplitude of a stage drift, px: the tube and its pipette wander on a
         smooth path (:meth:`drift`) while the camera's dust and illumination
@@ -540,8 +542,11 @@ class Renderer:
             layout = replace(layout, base=layout.base + self.drift[index])
         arcs = _sections_px(sc, layout, float(self.pressures[index]))
         pipe_len = 2.0 * math.hypot(sc.width, sc.height)
-        apply(_stamp(_Piece(layout.base, layout.angle_rad + math.pi, 0.0, pipe_len,
-                            0, True, False), self.pipette, shape))
+        behind = _Piece(layout.base, layout.angle_rad + math.pi, 0.0, pipe_len, 0, True, False)
+        apply(_stamp(behind, self.pipette, shape))
+        if sc.pipette_ratio > 1.0:
+            # a pipette wider than the tube holds it inside: seen through the glass
+            apply(_stamp(behind, self.profiles[0], shape))
         for piece in _pieces(arcs):
             apply(_stamp(piece, self.profiles[piece.profile], shape, plug=self.plug))
         return acc

@@ -1,0 +1,54 @@
+"""A tube pushed into a glass capillary wider than it, bent too little for
+the motion to tell the holder: the capillary's edges, wider apart than any
+section's, tell it (:func:`pipeline.pipette.wide_holder_end`)."""
+
+import json
+
+import pytest
+
+from models import get_sample
+from pipeline import pipette
+from pipeline.accuracy import score_folder
+from pipeline.render import default_scene, render_scene, strain_for_angle
+from pipeline.tracks import track_video
+
+
+def _scene(tmp_path, sample, bend_deg, look, ratio, fmt="png"):
+    spec = get_sample(sample)
+    eps = strain_for_angle(spec, bend_deg, p_max=spec.p_max_mpa or 0.15)
+    scene = default_scene(int(sample), eps_max=eps, n_frames=10, seed=5, look=look,
+                          width=640, height=480, pipette_ratio=ratio)
+    folder = render_scene(scene, tmp_path / "scene", fmt=fmt)
+    um = json.loads((folder / "scene.json").read_text())["layout"]["um_per_px"]
+    return folder, um
+
+
+@pytest.mark.parametrize("sample, look", [("1", "transmitted"), ("7", "opaque")])
+def test_a_capillary_a_tube_bent_10_deg_is_pushed_into_is_cut_off(tmp_path, monkeypatch,
+                                                                   sample, look):
+    folder, um = _scene(tmp_path, sample, 10.0, look, 1.5)
+    track_video(folder / "frames", tmp_path / "out", um_per_px=um)
+    _, acc = score_folder(folder, tmp_path / "out")
+    assert acc.frames_lost == 0
+    assert acc.base_error_max_px < 2.0, acc
+    assert acc.length_error_max_pct < 1.0, acc
+    notes = json.loads((tmp_path / "out" / "run.json").read_text())["left_out_and_why"]
+    assert any("as far apart as the tube's past them" in n for n in notes)
+
+    # without it, the capillary passed for the tube: the base at the border
+    monkeypatch.setattr(pipette, "wide_holder_end", lambda *a, **k: None)
+    track_video(folder / "frames", tmp_path / "off", um_per_px=um)
+    _, off = score_folder(folder, tmp_path / "off")
+    assert off.base_error_max_px > 50.0
+
+
+def test_a_first_section_wider_than_the_next_is_not_cut_off(tmp_path):
+    # sample 2's first section is 1.25x as wide as its second (Table 1), from a
+    # pipette narrower than it: it is tube
+    folder, um = _scene(tmp_path, "2", 10.0, "transmitted", 0.6)
+    track_video(folder / "frames", tmp_path / "out", um_per_px=um)
+    _, acc = score_folder(folder, tmp_path / "out")
+    assert acc.base_error_max_px < 2.0, acc
+    assert acc.length_error_max_pct < 1.0, acc
+    notes = json.loads((tmp_path / "out" / "run.json").read_text())["left_out_and_why"]
+    assert not any("as far apart as the tube's past them" in n for n in notes)
