@@ -46,7 +46,6 @@ from functools import cache
 
 import numpy as np
 from scipy.ndimage import gaussian_filter1d, map_coordinates
-from scipy.signal import find_peaks
 
 from .centreline import Curve, basis_of, cut_base, evaluate, resample
 from .profiles import sample_lines
@@ -151,6 +150,8 @@ HOLDER_EDGE = 0.25
 #: The profiles' spacing across the tube, px, and their smoothing (px).
 EDGE_STEP_PX = 0.5
 EDGE_SMOOTH_PX = 1.0
+#: ... and the tube's edges' strength from every this many px past the first part.
+FAR_STRIDE = 4
 #: The tube past the holder, from this many of its half-widths past the
 #: holder's end on (and as far short of its own end), gives the holder's axis
 #: where it turns by at most
@@ -340,25 +341,32 @@ def wide_holder_end(image: np.ndarray, curve: Curve, half_width: float
     the holder's span must be :data:`HOLDER_EDGE_RATIO` times that on
     :data:`HOLDER_EDGE_SHARE` of the profiles from the structure's start."""
     arc, z, _, normal = _sampled(curve)
+    k = max(2, int(round(2 * half_width)))      # a tube width, in profiles 1 px apart
+    last = int(np.searchsorted(arc, (1.0 - MIN_TUBE_SHARE) * curve.length))
+    far = np.flatnonzero(arc > (1.0 - MIN_TUBE_SHARE) * curve.length)[::FAR_STRIDE]
+    if far.size < 4 or last - k <= MIN_WIDTHS * k:
+        return None
+    # (the profiles over the first part, one per px, and every few px of the
+    # tube's share beyond for its edges' strength)
+    rows = np.concatenate([np.arange(min(last + 2 * k, arc.size)), far])
     d = np.arange(-4.0 * half_width, 4.0 * half_width + 0.5 * EDGE_STEP_PX, EDGE_STEP_PX)
-    pts = z[:, None] + normal[:, None] * d[None, :]
+    pts = z[rows, None] + normal[rows, None] * d[None, :]
     prof = map_coordinates(image, [-pts.imag.ravel(), pts.real.ravel()], order=1,
                            mode="nearest").reshape(pts.shape)
     grad = np.abs(np.gradient(gaussian_filter1d(prof, EDGE_SMOOTH_PX / EDGE_STEP_PX, axis=1),
                               EDGE_STEP_PX, axis=1))
-    far = arc > (1.0 - MIN_TUBE_SHARE) * curve.length
-    k = max(2, int(round(2 * half_width)))      # a tube width, in profiles 1 px apart
-    last = int(np.searchsorted(arc, (1.0 - MIN_TUBE_SHARE) * curve.length))
-    if far.sum() < 4 or last - k <= MIN_WIDTHS * k:
-        return None
-    own = np.minimum(np.where(d < 0, grad, 0).max(1), np.where(d > 0, grad, 0).max(1))
-    floor = HOLDER_EDGE * float(np.median(own[far]))
-    apart = max(1, int(round(1.0 / EDGE_STEP_PX)))
-    span = np.full(min(last + 2 * k, arc.size), np.nan)
-    for i in range(span.size):
-        e = d[find_peaks(grad[i], height=floor, distance=apart)[0]]
-        if e.size >= 2:
-            span[i] = e[-1] - e[0]
+    n = rows.size - far.size
+    tail = grad[n:]
+    own = np.minimum(np.where(d < 0, tail, 0).max(1), np.where(d > 0, tail, 0).max(1))
+    floor = HOLDER_EDGE * float(np.median(own))
+    # edges: the gradient's local maxima above the floor; the span, the
+    # outermost two's distance (NaN with fewer than two)
+    g = grad[:n]
+    peak = np.zeros(g.shape, bool)
+    peak[:, 1:-1] = (g[:, 1:-1] > g[:, :-2]) & (g[:, 1:-1] >= g[:, 2:]) & (g[:, 1:-1] >= floor)
+    first = np.argmax(peak, axis=1)
+    final = d.size - 1 - np.argmax(peak[:, ::-1], axis=1)
+    span = np.where(peak.sum(axis=1) >= 2, d[final] - d[first], np.nan)
     windows = np.lib.stride_tricks.sliding_window_view(span, k)
     with warnings.catch_warnings():
         # (a window without edges has no median: NaN, never the step)
