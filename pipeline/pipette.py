@@ -135,12 +135,13 @@ MOTION_FRAMES = 24
 #: walls, whose profiles step too.
 PROFILE_MIN_BEND_DEG = 20.0
 #: Where the motion cannot tell a holder (a tube bent too little, a holder
-#: the camera shakes with it), a straight stretch at the tracked structure's
-#: start whose edges lie at least this many times as far apart as the tube's
-#: past it does (:func:`wide_holder_end`): no tube's sections differ by as much
-#: (Table 1: at most 1.25, 810 against 650 µm), where glass capillaries the
-#: tube is pushed into measured 1.5-1.6 on an independent renderer's scenes
-#: (the detection's mask, read off a threshold, gave them 1.3-1.4) ...
+#: the camera shakes with it), a stretch at the tracked structure's start
+#: (not one the tube lies over further on) whose edges lie at least this
+#: many times as far apart as the tube's past it does
+#: (:func:`wide_holder_end`): no tube's sections differ by as much (Table 1:
+#: at most 1.25, 810 against 650 µm), where glass capillaries the tube is
+#: pushed into measured 1.5-1.6 on an independent renderer's scenes (the
+#: detection's mask, read off a threshold, gave them 1.3-1.4) ...
 HOLDER_EDGE_RATIO = 1.35
 #: ... on this share of its profiles from the structure's start on.
 HOLDER_EDGE_SHARE = 0.8
@@ -327,11 +328,28 @@ def _sampled(curve: Curve, spacing_px: float = 1.0):
 
 def wide_holder_end(image: np.ndarray, curve: Curve, half_width: float
                     ) -> tuple[float, float] | None:
-    """Where a holder wider than the tube ends along ``curve`` (px of arc
-    length from its start), and how many times the tube's width its edges lie
-    apart; None where the curve's first stretch shows none (see
-    :data:`HOLDER_EDGE_RATIO`).
+    """Where a holder wider than the tube ends along ``curve``, and how
+    many times the tube's width its edges lie apart.
 
+    Parameters
+    ----------
+    image : (rows, cols) float ndarray
+        The frame ``curve`` was measured on.
+    curve : Curve
+        The tracked structure's centreline, holder and tube, px (y up).
+    half_width : float
+        The tube's, px: the profiles span four on each side.
+
+    Returns
+    -------
+    (s, ratio) or None
+        ``s`` the holder's end, px of arc length from the curve's start;
+        ``ratio`` its edges' distance over the tube's (median). None where
+        the curve's first stretch shows no such holder (see
+        :data:`HOLDER_EDGE_RATIO`).
+
+    Notes
+    -----
     Each profile across the curve (to four half-widths on each side) is
     reduced to its edges, the peaks of its gradient, and their span (the
     outermost two's distance). The holder ends at the largest step down in
@@ -771,8 +789,8 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
                     f"their scatter {s * px:.0f} px from its start, and {kept}")
     if told is None:
         # the motion did not tell, or could not (a tube bent too little, a
-        # holder the camera shakes): a straight stretch at the structure's
-        # start whose edges lie wider apart than any section's tells it
+        # holder the camera shakes): a stretch at the structure's start
+        # whose edges lie wider apart than any section's tells it
         found = wide_holder_end(first_frame(), first, half_width)
         if found is not None:
             s, ratio = found

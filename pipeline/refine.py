@@ -173,7 +173,8 @@ TIP_STIFF_MIN_PX = 30.0
 #: low contrast, 800 px: max 3.3 → 8.4°). The 132 scenes that do not curl
 #: past a turn are unchanged.
 TIP_RATIO_WEIGHT = 1.0
-#: The same hold for a tube whose joints are not known (:func:`_tail_hold`):
+#: The same hold where no section ratio is held (no joints known, or the
+#: section before barely turned: :func:`_tail_hold`):
 #: wherever the crossing hides at least this many half-widths at its end, that
 #: stretch's mean curvature is held at the multiple of the stretch before it
 #: that the last shape seen whole had.

@@ -13,8 +13,9 @@ Per frame, only the work the frame needs (cheapest first):
    (the prediction) keeps the order along the tube and the unwrapped angle.
    A jointed tube's last section, when the crossing hides it, keeps its
    curvature in the ratio to the section before that it had when last seen
-   whole (``tip_ratio`` of :func:`pipeline.refine.refine`); a tube whose
-   joints are not known, the stretch the crossing hides at its end, in the
+   whole (``tip_ratio`` of :func:`pipeline.refine.refine`); without that
+   ratio (no joints known, or a section before that barely turns), the
+   stretch the crossing hides at its end, in the
    ratio to the stretch before it that the last shape seen whole had
    (``mode``). Of fits that fit the edges alike, the one from the prediction
    is kept (:data:`RESIDUAL_TIE`);
@@ -228,11 +229,12 @@ UNSETTLED_MOVE_PX = 0.5
 #: 0.05-0.2 % between frames where the end is seen clearly (a free fit 0.24 %
 #: long was 0.8 deg off, the held one 3.2; one 0.47 % long 1.8 deg, held 0.1).
 HELD_LENGTH_STEP = 0.003
-#: Fits at a crossing whose residuals are within this factor of each other
-#: fit the edges alike: where the tube lies over itself its end hides, and
-#: the edges do not tell how far round it has turned. Of those, the fit from
-#: the prediction (temporal continuity) is kept, over one that ran its end on
-#: into the other layer or one from the last shape.
+#: Fits whose residuals are within this factor of each other fit the edges
+#: alike: where the tube lies over itself its end hides, and the edges do not
+#: tell how far round it has turned. Of those, the fit from the prediction
+#: (temporal continuity) is kept, over one that ran its end on into the other
+#: layer or one from the last shape (and, for :data:`LENGTH_JUMP`, the fit at
+#: the tube's own length over the one whose length jumped).
 RESIDUAL_TIE = 1.25
 #: A fit whose length is off the tube's own (on the last frames where it did
 #: not cross itself) by more than this fraction is fitted again with the
@@ -1088,7 +1090,7 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
         result = _track_one(index, frame, look, history, hint, restart_end, det, settings,
                             known, search, tip_ratio, widths, typical,
                             float(np.median(lengths)) if history and lengths else None,
-                            whole)
+                            whole)  # (the last shape seen whole)
         if isinstance(result, tuple):  # (re)initialised: a new look, a new history
             old_look, (result, look) = look, result
             history, residuals, lengths, whole = [], [], [], None
@@ -1709,7 +1711,7 @@ def _from_later(image: np.ndarray, later: Curve, look: TubeLook, settings: Track
 def _track_one(index, frame, look, history, base_hint, base_end, detection, settings,
                known, search=False, tip_ratio=None, widths: WidthRecord | None = None,
                typical_residual: float | None = None, typical_length: float | None = None,
-               whole: Curve | None = None):
+               last_whole: Curve | None = None):
     if look is None or not history:
         image = as_float(frame)
         init = initialise(image, base_hint=base_hint, base_end=base_end, detection=detection,
@@ -1757,8 +1759,9 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
     # a section the crossing hides keeps its curvature in step with the one before
     held = tip_ratio[1] if tip_ratio is not None and tip_ratio[0] == pred.joints else None
     # without that ratio, the last shape seen whole tells a hidden end's curvature
-    mode = (whole.coef if held is None and whole is not None
-            and (whole.joints, whole.coef.size) == (pred.joints, pred.coef.size) else None)
+    mode = (last_whole.coef if held is None and last_whole is not None
+            and (last_whole.joints, last_whole.coef.size) == (pred.joints, pred.coef.size)
+            else None)
     # fast: refine the prediction inside the region it can occupy
     # the crop must hold where the tube can have moved: twice the last step's
     # tip motion; a fit that reaches the crop's edge anyway is redone on the frame
@@ -1848,8 +1851,11 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
         # still run into the holder until the base is voted on)
         image = as_float(frame) if image is None else image
         held_fits, _ = _held_length_fits(image, (r.curve, pred), look, typical_length, tol,
-                                         held, avoid_contact=crossing, mode=mode)
-        h = _least_residual([f for f in held_fits if accept(f)])
+                                         held, avoid_contact=crossing, mode=mode, free=False)
+        # (not a fit that runs on past the border at that length: the tip may
+        # have left the frame)
+        h = _least_residual([f for f in held_fits if accept(f) and f.in_view is not None
+                             and f.in_view[f.u >= HELD_VIEW_U].all()])
         if h is not None and h.residual_px <= RESIDUAL_TIE * r.residual_px:
             r, stage, work = h, "length held", 1.0
     if not accept(r):
@@ -1915,9 +1921,9 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
 
 
 def _least_residual(fits: list[Refined]) -> Refined | None:
-    """Of ``fits`` (in order of preference: the one from the prediction
-    first), the first whose residual is within :data:`RESIDUAL_TIE` of the
-    least; None if there are none."""
+    """Of ``fits`` (in order of preference: the caller's starts, the
+    prediction or the fit it came from first), the first whose residual is
+    within :data:`RESIDUAL_TIE` of the least; None if there are none."""
     if not fits:
         return None
     least = min(f.residual_px for f in fits)
@@ -2113,7 +2119,8 @@ HELD_VIEW_U = 0.5
 
 def _held_length_fits(image, starts, look: TubeLook, length: float, tol: float,
                       tip_ratio: float | None, *, avoid_contact: bool = True,
-                      mode: np.ndarray | None = None) -> tuple[list[Refined], list[Refined]]:
+                      mode: np.ndarray | None = None, free: bool = True
+                      ) -> tuple[list[Refined], list[Refined]]:
     """Fits of a tube that crosses itself from each of ``starts`` with its
     length held at ``length`` (the tube's own on the last frames where it did
     not cross itself), px; and the fits freed again from each of those.
@@ -2123,14 +2130,15 @@ def _held_length_fits(image, starts, look: TubeLook, length: float, tol: float,
     curl that stopped or turned back, 24-34 deg off and then lost. A tube keeps
     its length from frame to frame, and at that length the coil's edges tell
     how far round it turns. (Also asked, without ``avoid_contact`` and not
-    freed, of a frame where no fit kept the tube's length.)"""
+    freed, of a frame where no fit kept the tube's length; and, not
+    ``free``d, of one whose fit's length jumped: :data:`LENGTH_JUMP`.)"""
     held, freed = [], []
     for start in starts:
         fit = refine(image, start.with_params(start.coef, length), look,
                      window=1.5 * look.mean_half_width, iterations=10, fit_length=False,
                      avoid_contact=avoid_contact, tol_px=tol, tip_ratio=tip_ratio, mode=mode)
         held.append(replace(fit, length_held=True))
-        if avoid_contact:
+        if avoid_contact and free:
             freed.append(refine(image, fit.curve, look, iterations=10, avoid_contact=True,
                                 tol_px=tol, tip_ratio=tip_ratio, mode=mode))
     return held, freed
