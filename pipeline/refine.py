@@ -662,7 +662,7 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
     hold = None
     if avoid_contact and tip_ratio is not None and curve.joints:
         turns, spans = _section_turns(curve.coef.size, curve.joints)
-        hold = turns[1] / spans[1] - tip_ratio * turns[0] / spans[0]
+        hold = _ratio_row(turns, spans, tip_ratio)
         in_last = u > curve.joints[-1]
     tip_found = False
     cap_shape = np.nan
@@ -962,10 +962,23 @@ def _tail_hold(mode: np.ndarray, joints: tuple[float, ...], u: np.ndarray,
         return None
     span = min(1.0 - start, start)
     turns, spans = _turns_between(mode.size, joints, (start - span, start, 1.0))
-    before, last = turns @ mode
+    ratio = _stretch_ratio(turns, spans, mode)
+    return None if ratio is None else _ratio_row(turns, spans, ratio)
+
+
+def _stretch_ratio(turns: np.ndarray, spans: np.ndarray, coef: np.ndarray) -> float | None:
+    """Mean curvature of the second stretch of ``turns``/``spans``
+    (:func:`_turns_between`) over the first's, in the shape ``coef``; None
+    where the first turns less than :data:`TIP_RATIO_MIN_TURN`."""
+    before, last = turns @ coef
     if abs(before) < TIP_RATIO_MIN_TURN:
         return None
-    ratio = (last / spans[1]) / (before / spans[0])
+    return float((last / spans[1]) / (before / spans[0]))
+
+
+def _ratio_row(turns: np.ndarray, spans: np.ndarray, ratio: float) -> np.ndarray:
+    """The row H with ``H @ coef = 0`` where the second stretch's mean
+    curvature is ``ratio`` times the first's."""
     return turns[1] / spans[1] - ratio * turns[0] / spans[0]
 
 
@@ -1003,11 +1016,7 @@ def section_ratio(curve: Curve) -> float | None:
     """
     if not curve.joints:
         return None
-    turns, spans = _section_turns(curve.coef.size, curve.joints)
-    before, last = turns @ curve.coef
-    if abs(before) < TIP_RATIO_MIN_TURN:
-        return None
-    return float((last / spans[1]) / (before / spans[0]))
+    return _stretch_ratio(*_section_turns(curve.coef.size, curve.joints), curve.coef)
 
 
 def widths_at(image: np.ndarray, curve: Curve, look: TubeLook, u: np.ndarray, *,

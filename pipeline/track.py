@@ -1030,7 +1030,7 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
     # (joints, last section's curvature over the one before's) when last seen whole
     tip_ratio: tuple[tuple[float, ...], float] | None = None
     # the last shape seen whole (not at a crossing): what a hidden end follows
-    whole: Curve | None = None
+    last_whole: Curve | None = None
     # where the base was found on the first frames, and those frames' results
     # (with the frames) held back until it is settled; not when it was given
     votes = _BaseVotes()
@@ -1090,10 +1090,10 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
         result = _track_one(index, frame, look, history, hint, restart_end, det, settings,
                             known, search, tip_ratio, widths, typical,
                             float(np.median(lengths)) if history and lengths else None,
-                            whole)  # (the last shape seen whole)
+                            last_whole)
         if isinstance(result, tuple):  # (re)initialised: a new look, a new history
             old_look, (result, look) = look, result
-            history, residuals, lengths, whole = [], [], [], None
+            history, residuals, lengths, last_whole = [], [], [], None
             # (the stage measured from this start's region: an earlier start's
             # may have been on something else)
             carried, drift, measured, looked = followed(), None, {}, False
@@ -1152,7 +1152,7 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
             if not result.crossing:
                 ratio = section_ratio(result.tracked)
                 tip_ratio = None if ratio is None else (result.tracked.joints, ratio)
-                whole = result.tracked
+                last_whole = result.tracked
             # the pipette holds the base still: a restart finds the tube from the
             # same base, so the ends cannot swap (which would flip the angle's sign)
             held_base = hint if base_hint is not None else _base_col_row(result.curve)
@@ -1811,8 +1811,7 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
             else:
                 # (not a tube whose end may have left the frame: held at its
                 # length, it runs on past the border)
-                held_fits = [f for f in held_fits
-                             if f.in_view is not None and f.in_view[f.u >= HELD_VIEW_U].all()]
+                held_fits = [f for f in held_fits if _in_view_on(f)]
         r = max(cands, key=rank)
         # (at a crossing every fit is steady: its residual is no test there)
         if held_fits and not (accept(r) and abs(r.curve.length - typical_length)
@@ -1854,8 +1853,7 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
                                          held, avoid_contact=crossing, mode=mode, free=False)
         # (not a fit that runs on past the border at that length: the tip may
         # have left the frame)
-        h = _least_residual([f for f in held_fits if accept(f) and f.in_view is not None
-                             and f.in_view[f.u >= HELD_VIEW_U].all()])
+        h = _least_residual([f for f in held_fits if accept(f) and _in_view_on(f)])
         if h is not None and h.residual_px <= RESIDUAL_TIE * r.residual_px:
             r, stage, work = h, "length held", 1.0
     if not accept(r):
@@ -1918,6 +1916,12 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
                       end_offset=r.end_offset, end_steps=r.end_steps,
                       told_offset=r.told_offset, end_profile=r.end_profile,
                       cap_shape=r.cap_shape)
+
+
+def _in_view_on(fit: Refined) -> bool:
+    """Whether ``fit``'s profiles from :data:`HELD_VIEW_U` of its length on
+    all lie in the frame."""
+    return fit.in_view is not None and bool(fit.in_view[fit.u >= HELD_VIEW_U].all())
 
 
 def _least_residual(fits: list[Refined]) -> Refined | None:
