@@ -864,9 +864,59 @@ def _detect_at(image: np.ndarray, f: int, base_hint, base_end,
     # the tube by its own contrast, and by its outline: a transparent tube on a
     # mottled background, no darker than the darker patches, differs from them
     # mostly in its sharp edges
-    det = _detect_in(foreground(contrast), f, base_hint, base_end)
-    outline = _detect_in(outline_foreground(contrast), f, base_hint, base_end, outline=True)
+    det = _without_network(foreground, contrast, f, base_hint, base_end)
+    outline = _without_network(outline_foreground, contrast, f, base_hint, base_end,
+                               outline=True)
     return outline if _outline_wins(det, outline) else det
+
+
+#: A foreground whose structures' skeletons (filled as a tube's) branch at
+#: more than this many places is taken for a network of lines (printed grid
+#: paper under the dish, a mesh) with the tube in it, not a tube with the odd
+#: crossing and spur (12 at most on the 130 scenes of four renderers, but for
+#: a reticle's crossed lines and scale bar, 15; grids: 21 and 82): its
+#: thresholds are raised by each of NETWORK_RAISE in
+#: turn until it is not, and the tube found there is kept where it is
+#: tube-like (:data:`TUBE_MIN_HW`). Darker than the grid's lines, it stands out
+#: of them; and the longest path through the network, which the tube joins,
+#: runs along the lines.
+NETWORK_JUNCTIONS = 12
+NETWORK_RAISE = (2.0, 4.0)
+
+
+class _Network(Exception):
+    """The foreground is a network of lines (:data:`NETWORK_JUNCTIONS`)."""
+
+
+def _without_network(mask_of, contrast: np.ndarray, f: int, base_hint, base_end, *,
+                     outline: bool = False) -> Detection | None:
+    """:func:`_detect_in` on ``mask_of(contrast)`` (:func:`foreground` or
+    :func:`outline_foreground`); where that is a network of lines, on the
+    mask at the first of :data:`NETWORK_RAISE` times its thresholds that is
+    not, where the tube found there is tube-like."""
+    plain = mask_of(contrast)
+    try:
+        return _detect_in(plain, f, base_hint, base_end, outline=outline, network_ok=False)
+    except _Network:
+        pass
+    for raised in NETWORK_RAISE:
+        try:
+            det = _detect_in(mask_of(contrast, high=6.0 * raised, low=3.0 * raised), f,
+                             base_hint, base_end, outline=outline, network_ok=False)
+        except _Network:
+            continue
+        if det is not None and det.found_length >= TUBE_MIN_HW * det.half_width:
+            return det
+        break
+    return _detect_in(plain, f, base_hint, base_end, outline=outline)
+
+
+def _junctions(skel: np.ndarray) -> int:
+    """The places where a skeleton branches (8-connected clusters of pixels
+    with three or more neighbours)."""
+    neighbours = ndi.convolve(skel.astype(np.uint8), np.ones((3, 3), np.uint8),
+                              mode="constant") - 1
+    return int(ndi.label(skel & (neighbours >= 3), structure=np.ones((3, 3)))[1])
 
 
 def _outline_wins(det: Detection | None, outline: Detection | None) -> bool:
@@ -895,13 +945,15 @@ CANDIDATES = 3
 
 
 def _detect_in(mask: np.ndarray, f: int, base_hint, base_end, *,
-               outline: bool = False) -> Detection | None:
+               outline: bool = False, network_ok: bool = True) -> Detection | None:
     """:func:`detect` on a foreground ``mask`` at 1/``f`` resolution: the
     largest structure, or the next where that is stubby (:data:`TUBE_MIN_HW`)
     or lies off a given base (:func:`_off_the_base`)."""
     first = None
     for _ in range(CANDIDATES):
-        det, filled = _detect_largest(mask, f, base_hint, base_end, outline=outline)
+        det, filled = _detect_largest(mask, f, base_hint, base_end, outline=outline,
+                                      network_ok=network_ok)
+        network_ok = True
         if det is None:
             return first
         if (det.found_length >= TUBE_MIN_HW * det.half_width
@@ -923,8 +975,8 @@ def _off_the_base(det: Detection, base_hint) -> bool:
     return float(np.min(np.abs(det.path - hint))) > 2.0 * det.half_width
 
 
-def _detect_largest(mask: np.ndarray, f: int, base_hint, base_end, *,
-                    outline: bool = False) -> tuple[Detection | None, np.ndarray | None]:
+def _detect_largest(mask: np.ndarray, f: int, base_hint, base_end, *, outline: bool = False,
+                    network_ok: bool = True) -> tuple[Detection | None, np.ndarray | None]:
     """:func:`detect` on the largest structure of a foreground ``mask`` at
     1/``f`` resolution; and that structure, filled (None if there is none)."""
     if mask.sum() < 20:
@@ -939,6 +991,8 @@ def _detect_largest(mask: np.ndarray, f: int, base_hint, base_end, *,
         return None, None
     dist = ndi.distance_transform_edt(filled)
     skel = _skeleton(filled)
+    if not network_ok and _junctions(skel) > NETWORK_JUNCTIONS:
+        raise _Network
     radius = float(np.median(dist[skel])) if skel.any() else 0.0
     for cuts in range(CROSSINGS_MAX + 1):
         path_rc = longest_path(skel, border_bonus=2.0 * radius, margin=2.0 + radius, radius=dist)
