@@ -47,7 +47,7 @@ from functools import cache
 import numpy as np
 from scipy.ndimage import gaussian_filter1d, map_coordinates
 
-from .centreline import Curve, basis_of, cut_base, evaluate, resample
+from .centreline import Curve, basis_of, cut_base, evaluate, make_basis, resample
 from .profiles import sample_lines
 from .track import FrameTrack
 
@@ -175,6 +175,20 @@ SYMMETRY_LINE_PX = 0.5
 SYMMETRY_SE_DEG = 0.2
 STRAIGHT_DEG = 2.0
 #: Status of a frame whose centreline does not pass where the holder ends.
+#: A fit through a holder and the tube, its curvature smooth, hooks sideways
+#: where the edges step from the holder's to the tube's: cut there, its base
+#: lay 2-4 px beside the tube's axis (an independent renderer's capillaries,
+#: 1.5x the tube's width). The cut curve's first UNHOOK_HW half-widths (at
+#: most UNHOOK_SHARE of it) are replaced by the arc of constant curvature that
+#: leaves along the holder's axis and meets the fit there, on its tangent
+#: (:func:`unhooked`), where that moves the first frame's base at least
+#: UNHOOK_MIN_PX aside: elsewhere the fit had no hook to take out, and the
+#: arc, which stands for the tube's curvature only on average, would move the
+#: base by less than it would add (0.1-0.5 px on an independent renderer's
+#: scenes, a tube unbending from a curl).
+UNHOOK_HW = 3.0
+UNHOOK_SHARE = 0.25
+UNHOOK_MIN_PX = 1.0
 OFF_HOLDER = "lost: the tube's start not found at the holder's end"
 #: ... and of one whose tube beyond it is far from the first frame's length.
 OFF_LENGTH = "lost: the tube beyond the holder far from its length on the first frame"
@@ -711,6 +725,37 @@ def on_first_stage(results: list[FrameTrack]) -> list[FrameTrack]:
     return [r.moved(origin - r.stage_shift) for r in results]
 
 
+def unhooked(curve: Curve, reach: float) -> Curve:
+    """``curve`` with its first ``reach`` px the arc of constant curvature
+    leaving its base along its base tangent that meets it at ``reach``, on its
+    tangent there; the base moved to where that arc starts (the points past
+    ``reach`` stay where they were).
+
+    Parameters
+    ----------
+    curve : Curve
+        px (y up); its base tangent the holder's axis (:func:`cut_base`).
+    reach : float
+        px, under the curve's length.
+    """
+    n = int(np.ceil(curve.length / 0.25)) + 1
+    basis = basis_of(curve, max(n, 2))
+    smp = evaluate(curve, basis)
+    arc, z, phi = basis.u * curve.length, smp.z, smp.phi
+    at = complex(np.interp(reach, arc, z.real), np.interp(reach, arc, z.imag))
+    turn = float(np.interp(reach, arc, phi)) - curve.base_angle
+    start = np.exp(1j * curve.base_angle)
+    # (the arc's chord: ∫ exp(i(φ0 + turn·s/reach)) ds over [0, reach])
+    chord = (reach * start if abs(turn) < 1e-9
+             else reach * start * (np.exp(1j * turn) - 1) / (1j * turn))
+    ramp = np.where(arc < reach, curve.base_angle + turn * arc / reach, phi)
+    fit = make_basis(curve.coef.size, basis_of(curve).n_grid, curve.joints)
+    target = np.interp(fit.u * curve.length, arc, ramp) - curve.base_angle
+    coef, *_ = np.linalg.lstsq(fit.values, target, rcond=None)
+    coef[-1] = target[-1]   # (the tip's angle exactly, as cut_base)
+    return replace(curve, base=at - chord, coef=coef)
+
+
 def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
                 px: float = 1.0) -> tuple[list[FrameTrack], str | None]:
     """Cut a holder taken for the tube off every frame's centreline.
@@ -811,6 +856,7 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
     axis = holder_axis(first, s, half_width, first_frame())
     tol = max(2.0, 0.5 * half_width)
     tube = first.length - s
+    hook = _hook(first, s, axis, half_width)
     out = []
     for r in results:
         if not r.ok:
@@ -830,9 +876,28 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
         # (the fit shares the curve's base: cut at the same arc length; the
         # last section's record describes the uncut spline, and goes)
         out.append(replace(
-            r, curve=cut_base(r.curve, at, axis) if at >= 1.0 else r.curve,
-            fit=(cut_base(r.fit, min(at, 0.5 * r.fit.length), axis)
+            r, curve=_cut(r.curve, at, axis, hook) if at >= 1.0 else r.curve,
+            fit=(_cut(r.fit, min(at, 0.5 * r.fit.length), axis, hook)
                  if r.fit is not None and at >= 1.0 else r.fit),
             last_section=None).moved(r.stage_shift - origin))
     return out, (f"{told}: a holder (pipette) taken for the tube, cut off every frame (its "
                  "axis the base tangent)")
+
+
+def _hook(first: Curve, s: float, axis: float, half_width: float) -> float:
+    """How far past a holder's end, ``s`` px along the ``first`` frame's
+    curve, the fit's hook is taken out (px: :data:`UNHOOK_HW` half-widths, at
+    most :data:`UNHOOK_SHARE` of the tube), or 0 where taking it out moves
+    the base less than :data:`UNHOOK_MIN_PX` aside."""
+    cut = cut_base(first, s, axis)
+    reach = min(UNHOOK_HW * half_width, UNHOOK_SHARE * cut.length)
+    aside = ((unhooked(cut, reach).base - cut.base) * np.exp(-1j * axis)).imag
+    return reach if abs(aside) >= UNHOOK_MIN_PX else 0.0
+
+
+def _cut(curve: Curve, s: float, axis: float, hook: float) -> Curve:
+    """``curve`` cut ``s`` px from its base, its base tangent ``axis`` (rad),
+    and its first ``hook`` px past the cut unhooked (:func:`unhooked`; none
+    for 0)."""
+    cut = cut_base(curve, s, axis)
+    return unhooked(cut, min(hook, UNHOOK_SHARE * cut.length)) if hook > 0 else cut
