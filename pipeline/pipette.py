@@ -174,6 +174,15 @@ SYMMETRY_KEEP = 0.6
 SYMMETRY_LINE_PX = 0.5
 SYMMETRY_SE_DEG = 0.2
 STRAIGHT_DEG = 2.0
+#: Where no centre shows (half of the holder out of the frame), the axis is
+#: the direction of the holder's straight edges alone (:func:`edge_axis`),
+#: from its end back this many half-widths (at least the holder's stretch of
+#: the curve), each side's strongest edge on at least EDGE_AXIS_KEEP of the
+#: profiles in the frame, on a line to EDGE_AXIS_LINE_PX (RMS, px), its
+#: direction known to SYMMETRY_SE_DEG.
+EDGE_AXIS_HW = 12.0
+EDGE_AXIS_KEEP = 0.6
+EDGE_AXIS_LINE_PX = 0.5
 #: Status of a frame whose centreline does not pass where the holder ends.
 #: A fit through a holder and the tube, its curvature smooth, hooks sideways
 #: where the edges step from the holder's to the tube's: cut there, its base
@@ -588,10 +597,81 @@ def holder_axis(curve: Curve, s: float, half_width: float,
     if past.size >= 4 * half_width and np.ptp(past) <= np.radians(STRAIGHT_DEG):
         return float(np.mean(past))
     if image is not None:
-        axis = symmetric_axis(image, curve, s, half_width)
-        if axis is not None:
-            return axis
+        for way in (symmetric_axis, edge_axis):
+            axis = way(image, curve, s, half_width)
+            if axis is not None:
+                return axis
     return axis_angle(curve, s)
+
+
+def edge_axis(image: np.ndarray, curve: Curve, s: float,
+              half_width: float) -> float | None:
+    """The axis of the holder whose end is ``s`` px along ``curve``, rad,
+    from its edges alone: the line of each side's strongest edge on profiles
+    across the holder, from its end back along the fit's mean direction
+    through it (:data:`EDGE_AXIS_HW`); a pipette's walls and the tube inside
+    it all run along its axis. Where both sides' edges lie on lines, their
+    mean direction; one side's where only one does (the other out of the
+    frame: a pipette along the frame's border, a fit through it 5 deg off);
+    None where neither does (:data:`EDGE_AXIS_KEEP`,
+    :data:`EDGE_AXIS_LINE_PX`).
+
+    Parameters as :func:`symmetric_axis`.
+    """
+    arc, z, _, _ = _sampled(curve, 0.5)
+    end = complex(np.interp(s, arc, z.real), np.interp(s, arc, z.imag))
+    ahead = np.exp(1j * axis_angle(curve, s))
+    behind = np.arange(half_width, max(s, EDGE_AXIS_HW * half_width), 1.0)
+    if behind.size < 8:
+        return None
+    stations = end - behind * ahead
+    normal = 1j * ahead
+    reach = SYMMETRY_HW * half_width
+    off = np.arange(-reach, reach + EDGE_STEP_PX / 2, EDGE_STEP_PX)
+    prof = sample_lines(image, stations, normal, off)
+    grad = np.abs(np.gradient(prof, EDGE_STEP_PX, axis=1))
+    directions = []
+    for side in (off < 0, off > 0):
+        g = grad[:, side]
+        # (profiles mostly in the frame: the holder runs on out of it)
+        seen = np.isfinite(g).mean(axis=1) >= 0.5
+        if seen.sum() < 8:
+            continue
+        at = off[side][np.nanargmax(np.where(np.isfinite(g[seen]), g[seen], -np.inf), axis=1)]
+        points = stations[seen] + normal * at
+        line = _robust_line(np.c_[points.real, points.imag])
+        if line is None or line[1] < EDGE_AXIS_KEEP * seen.sum():
+            continue
+        d, kept, rms, span = line
+        # (the line's direction to SYMMETRY_SE_DEG: its slope's standard error)
+        if rms * np.sqrt(12.0 / kept) > np.radians(SYMMETRY_SE_DEG) * max(span, 1e-9):
+            continue
+        directions.append(d if (d * np.conj(ahead)).real > 0 else -d)
+    if not directions:
+        return None
+    return float(np.angle(np.mean(directions)))
+
+
+def _robust_line(xy: np.ndarray, rounds: int = 3
+                 ) -> tuple[complex, int, float, float] | None:
+    """The line through points ``xy`` (N, 2, px), those over three robust
+    SDs off it (another edge's) left out: its direction, how many points it
+    kept, their RMS distance from it and their span along it (px); None
+    where that RMS is over :data:`EDGE_AXIS_LINE_PX`."""
+    keep = np.ones(len(xy), bool)
+    for _ in range(rounds):
+        if keep.sum() < 3:
+            return None
+        centre = xy[keep].mean(axis=0)
+        _, _, vt = np.linalg.svd(xy[keep] - centre, full_matrices=False)
+        off = np.abs((xy - centre) @ vt[1])
+        spread = 1.4826 * np.median(off[keep])
+        keep = off <= max(3.0 * spread, EDGE_STEP_PX)
+    rms = float(np.sqrt(np.mean(off[keep] ** 2))) if keep.sum() >= 3 else np.inf
+    if rms > EDGE_AXIS_LINE_PX:
+        return None
+    along = (xy[keep] - centre) @ vt[0]
+    return complex(vt[0, 0], vt[0, 1]), int(keep.sum()), rms, float(np.ptp(along))
 
 
 def symmetric_axis(image: np.ndarray, curve: Curve, s: float,
