@@ -145,6 +145,10 @@ PROFILE_MIN_BEND_DEG = 20.0
 HOLDER_EDGE_RATIO = 1.35
 #: ... on this share of its profiles from the structure's start on.
 HOLDER_EDGE_SHARE = 0.8
+#: A stretch between such a holder's end and a holder's end told further on by
+#: the motion is a stiff first section where its edges' span is steady to this
+#: (its halves' medians), not a tapered holder narrowing to its tip.
+SECTION_STEADY = 0.05
 #: An edge there is a peak of the profile's gradient of at least this share
 #: of the tube's own edges' (their median over the tube's share of the curve).
 HOLDER_EDGE = 0.25
@@ -349,8 +353,8 @@ def _sampled(curve: Curve, spacing_px: float = 1.0):
     return basis.u * curve.length, smp.z, smp.phi, smp.normal
 
 
-def wide_holder_end(image: np.ndarray, curve: Curve, half_width: float
-                    ) -> tuple[float, float] | None:
+def wide_holder_end(image: np.ndarray, curve: Curve, half_width: float,
+                    section_to: float | None = None) -> tuple[float, float] | None:
     """Where a holder wider than the tube ends along ``curve``, and how
     many times the tube's width its edges lie apart.
 
@@ -362,6 +366,11 @@ def wide_holder_end(image: np.ndarray, curve: Curve, half_width: float
         The tracked structure's centreline, holder and tube, px (y up).
     half_width : float
         The tube's, px: the profiles span four on each side.
+    section_to : float, optional
+        Arc length, px, past the holder's end: the stretch from the end to
+        there must be a section of the tube, its edges' span steady (the
+        medians over its two halves within :data:`SECTION_STEADY` of each
+        other), not the narrowing end of a tapered holder.
 
     Returns
     -------
@@ -431,6 +440,14 @@ def wide_holder_end(image: np.ndarray, curve: Curve, half_width: float
     if width <= 0 or wide.mean() < HOLDER_EDGE_SHARE:
         return None
     s_end = float(arc[j])
+    if section_to is not None:
+        stretch = span[j + k // 2:min(int(np.searchsorted(arc, section_to)) - k // 2, span.size)]
+        halves = np.array_split(stretch, 2)
+        if stretch.size < 2 * k or any(np.isnan(h).mean() > 0.5 for h in halves):
+            return None
+        first_half, second_half = (float(np.nanmedian(h)) for h in halves)
+        if abs(first_half / second_half - 1.0) > SECTION_STEADY:
+            return None
     # (not where the tube lies over itself: a coil over the base is a wider
     # structure too; the rest: farther along than a half turn of that reach)
     reach = 4 * half_width
@@ -912,22 +929,24 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
                     f"{wobble * px:.1f} px, its drift aside)")
             told = (f"the profiles along the tracked structure stepped by {change:.0f}x "
                     f"their scatter {s * px:.0f} px from its start, and {kept}")
-    if told is None:
-        # the motion did not tell, or could not (a tube bent too little, a
-        # holder the camera shakes): a stretch at the structure's start
-        # whose edges lie wider apart than any section's tells it
-        found = wide_holder_end(first_frame(), first, half_width)
-        if found is not None:
-            s, ratio = found
-            at, change = profile_change(first_frame(), first, half_width,
-                                        s + HOLDER_REACH_HW * half_width)
-            placed = change >= MIN_CHANGE and abs(at - s) <= half_width
-            s = at if placed else s
-            profiled = True
-            told = (f"the tracked structure's first {s * px:.0f} px had its edges {ratio:.2f}x "
-                    "as far apart as the tube's past them"
-                    + (f", and its profiles stepped there by {change:.0f}x their scatter"
-                       if placed else ""))
+    # the motion did not tell, or could not (a tube bent too little, a holder
+    # the camera shakes): a stretch at the structure's start whose edges lie
+    # wider apart than any section's tells it. Where the motion told a holder
+    # ending further on, a stiff first section (that stood still, its profile
+    # stepping at the joint) lies in a wider holder's edges ending first
+    found = wide_holder_end(first_frame(), first, half_width,
+                            section_to=None if told is None else s)
+    if found is not None and (told is None or found[0] < s - STEP_WIDTHS * 2 * half_width):
+        s, ratio = found
+        at, change = profile_change(first_frame(), first, half_width,
+                                    s + HOLDER_REACH_HW * half_width)
+        placed = change >= MIN_CHANGE and abs(at - s) <= half_width
+        s = at if placed else s
+        profiled = True
+        told = (f"the tracked structure's first {s * px:.0f} px had its edges {ratio:.2f}x "
+                "as far apart as the tube's past them"
+                + (f", and its profiles stepped there by {change:.0f}x their scatter"
+                   if placed else ""))
     if (told is None or (s < STEP_WIDTHS * 2 * half_width and not profiled)
             or first.length - s < MIN_TUBE_SHARE * first.length):
         return [r.moved(r.stage_shift - origin) for r in results], None

@@ -332,7 +332,7 @@ def test_a_tube_in_a_glass_sleeve_is_cut_where_it_leaves_it_though_it_bends_litt
     # without the profiles looked at along the tube (nor the capillary's edges
     # wider apart, which tell it too: test_wide_holder.py), it runs on to the border
     monkeypatch.setattr(pipette, "rigid_wobble", lambda *args: np.inf)
-    monkeypatch.setattr(pipette, "wide_holder_end", lambda *args: None)
+    monkeypatch.setattr(pipette, "wide_holder_end", lambda *args, **kwargs: None)
     track_video(folder, tmp_path / "kept", um_per_px=1.0)
     kept = pd.read_csv(tmp_path / "kept" / "tracks.csv")
     assert kept.length_um.min() > LENGTH + 150

@@ -52,3 +52,24 @@ def test_a_first_section_wider_than_the_next_is_not_cut_off(tmp_path):
     assert acc.length_error_max_pct < 1.0, acc
     notes = json.loads((tmp_path / "out" / "run.json").read_text())["left_out_and_why"]
     assert not any("as far apart as the tube's past them" in n for n in notes)
+
+
+def test_a_stiff_first_section_in_a_wider_capillary_is_not_taken_for_the_holder(
+        tmp_path, monkeypatch):
+    # sample 2's first section (1.25x as wide, three times as stiff) barely
+    # bends: it stands still with the capillary, and its profile steps at the
+    # joint; the capillary's edges, 1.5x as far apart as it, end first
+    scene = default_scene(2, n_frames=10, seed=4, width=640, height=480, pipette_ratio=1.5)
+    folder = render_scene(scene, tmp_path / "scene", fmt="png")
+    um = json.loads((folder / "scene.json").read_text())["layout"]["um_per_px"]
+    track_video(folder / "frames", tmp_path / "out", um_per_px=um)
+    _, acc = score_folder(folder, tmp_path / "out")
+    assert acc.frames_lost == 0
+    assert acc.base_error_max_px < 2.0, acc
+    assert acc.length_error_max_pct < 1.0, acc
+
+    # without the capillary's edges, the first section went with the holder
+    monkeypatch.setattr(pipette, "wide_holder_end", lambda *a, **k: None)
+    track_video(folder / "frames", tmp_path / "off", um_per_px=um)
+    _, off = score_folder(folder, tmp_path / "off")
+    assert off.frames_lost > 0 or off.length_error_max_pct > 10.0, off
