@@ -187,7 +187,6 @@ STRAIGHT_DEG = 2.0
 EDGE_AXIS_HW = 12.0
 EDGE_AXIS_KEEP = 0.6
 EDGE_AXIS_LINE_PX = 0.5
-#: Status of a frame whose centreline does not pass where the holder ends.
 #: A fit through a holder and the tube, its curvature smooth, hooks sideways
 #: where the edges step from the holder's to the tube's: cut there, its base
 #: lay 2-4 px beside the tube's axis (an independent renderer's capillaries,
@@ -202,6 +201,10 @@ EDGE_AXIS_LINE_PX = 0.5
 UNHOOK_HW = 3.0
 UNHOOK_SHARE = 0.25
 UNHOOK_MIN_PX = 1.0
+#: Status of a frame whose centreline does not pass where the holder ends:
+#: further than this many half-widths (and 2 px) from where the first frame's
+#: does.
+OFF_HOLDER_HW = 1.0
 OFF_HOLDER = "lost: the tube's start not found at the holder's end"
 #: ... and of one whose tube beyond it is far from the first frame's length.
 OFF_LENGTH = "lost: the tube beyond the holder far from its length on the first frame"
@@ -953,7 +956,9 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
     arc, z, _, _ = _sampled(first, 0.25)
     end = complex(np.interp(s, arc, z.real), np.interp(s, arc, z.imag))
     axis = holder_axis(first, s, half_width, first_frame())
-    tol = max(2.0, 0.5 * half_width)
+    # (within the tube's half-width: a fit through a holder the camera shakes,
+    # its base held at the border, passes its end up to 4.7 px aside)
+    tol = max(2.0, OFF_HOLDER_HW * half_width)
     tube = first.length - s
     hook = _hook(first, s, axis, half_width)
     out = []

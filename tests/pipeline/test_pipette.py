@@ -544,3 +544,23 @@ def test_a_holder_the_hinge_tells_is_ended_where_its_profiles_step(monkeypatch):
     cut, note = pipette.drop_holder(results, lambda: img, 5.0)
     assert "its end placed where the profiles along it stepped" in note, note
     assert abs(cut[0].curve.base - (163 - 150j)) < 1.0, cut[0].curve.base
+
+
+def test_a_frame_passing_the_holder_s_end_within_a_half_width_is_cut_there(monkeypatch):
+    # a frame little bent whose fit passes the holder's end 4 px aside (the
+    # camera shook it; the base held at the border): within a half-width (5
+    # px) it is cut there and measured; 7 px aside it is lost
+    img = np.full((400, 500), 0.5, np.float32)
+    results = _clamped_tracks(60.0, [0.0, 0.5, 1.0, 2.0, 3.0], noise=1e-3)
+    shaken = [results[0], results[1].moved(4j), *results[2:]]
+    out, note = pipette.drop_holder(shaken, lambda: img, 5.0)
+    assert note is not None and "clamped" in note
+    assert all(r.ok for r in out)
+    assert abs(out[1].curve.length - 300.0) < 2.0
+    astray = [results[0], results[1].moved(7j), *results[2:]]
+    out, _ = pipette.drop_holder(astray, lambda: img, 5.0)
+    assert [r.status for r in out] == ["ok", pipette.OFF_HOLDER, "ok", "ok", "ok"]
+    # held to half a half-width, the shaken frame was lost
+    monkeypatch.setattr(pipette, "OFF_HOLDER_HW", 0.5)
+    out, _ = pipette.drop_holder(shaken, lambda: img, 5.0)
+    assert out[1].status == pipette.OFF_HOLDER
