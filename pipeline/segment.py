@@ -1025,7 +1025,19 @@ def _detect_largest(mask: np.ndarray, f: int, base_hint, base_end, *, outline: b
         hint = np.array([orient[1], orient[0]], dtype=float) / f
         d_first = np.hypot(*(path_rc[0] - hint))
         d_last = np.hypot(*(path_rc[-1] - hint))
-        if d_last < d_first:
+        reverse = d_last < d_first
+        if base_hint is not None:
+            # a base given inside the structure (the holder taken in on one
+            # side of it): the holder's side is the one that runs to the
+            # border, whichever end lies nearer (a tube curled past a turn
+            # brings its tip back by the base: it was taken for the base end)
+            k = int(np.argmin(np.hypot(*(path_rc - hint).T)))
+            inside = min(k, path_rc.shape[0] - 1 - k) > 2 * half_width
+            first_b = _touches_border(path_rc[0], shape, max(margin, 2.0 + width[0] / 2))
+            last_b = _touches_border(path_rc[-1], shape, max(margin, 2.0 + width[-1] / 2))
+            if inside and first_b != last_b:
+                reverse = last_b
+        if reverse:
             path_rc, width = path_rc[::-1], width[::-1]
     else:
         # (a wider holder's skeleton stops its own radius short of the border)

@@ -989,7 +989,9 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
     frames : iterable of (rows, cols) ndarray
         Greyscale frames, streamed.
     base_hint : (col, row), optional
-        Where the tube leaves the pipette, px (e.g. from ``--base``).
+        Where the tube leaves the pipette, px (e.g. from ``--base``): the
+        base is held there (moved with a drifting stage); the first frames
+        still vote on its tangent (:data:`BASE_VOTE_FRAMES`).
     base_end : (col, row), optional
         A point near the base end of the tube (which end is held), px; the
         base itself is then found along the tube.
@@ -1045,7 +1047,9 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
     # the tube's length on the last frames measured where it does not cross itself
     lengths: list[float] = []
     # (each with its frame as float32)
-    pending: list[tuple[FrameTrack, np.ndarray]] | None = [] if base_hint is None else None
+    # (with --base, the base point is the user's: the frames vote on its
+    # tangent alone)
+    pending: list[tuple[FrameTrack, np.ndarray]] | None = []
     # the stage's drift, read from the holder around the base (from the first
     # frame measured on)
     drift: StageDrift | None = None
@@ -1178,12 +1182,14 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
             path = _stage_path(pending, drift, measured)
             pending, restaged = _staged(pending, path)
             base, turn = votes.settled(history, followed(), path)
+            base = base if base_hint is None else None
             turn = _turn_past_holder(pending, history, base, turn, look.mean_half_width)
             if base is not None or turn:
                 history = [_moved_base(h, None if base is None else base + followed(), turn,
                                        look.mean_half_width)
                            for h in history]
-                held_base = _base_col_row(history[-1])
+                if base_hint is None:
+                    held_base = _base_col_row(history[-1])
             done, pending = _refitted(pending, base, turn, look, settings, restaged), None
         else:
             done = [result]
@@ -1194,7 +1200,8 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
     if pending:  # a video shorter than the vote
         path = _stage_path(pending, drift, measured)
         pending, restaged = _staged(pending, path)
-        for r in _refitted(pending, *votes.settled(history, followed(), path), look, settings,
+        base, turn = votes.settled(history, followed(), path)
+        for r in _refitted(pending, base if base_hint is None else None, turn, look, settings,
                            restaged):
             yield r
             if progress is not None:
