@@ -52,3 +52,22 @@ def test_a_base_given_on_a_drifting_stage_follows_it(tmp_path):
     assert acc.base_error_max_px < 1.0, acc
     assert acc.angle_max < 1.0, acc
     assert np.isfinite(errors.angle_error_deg).all()
+
+
+def test_a_base_given_on_a_tube_bent_far_finds_the_pipette_s_axis(tmp_path, monkeypatch):
+    # sample 2 unbending from its full bend: on the first frame the base
+    # tangent fitted leans 4.5 deg into the bend, past the pipette search's
+    # 3 deg; turned by 4 deg, the search finds the pipette's axis
+    from pipeline import track
+
+    scene = _deflating(default_scene(2, n_frames=12, seed=26, base_angle_deg=300.0,
+                                     width=640, height=480))
+    folder, um, base = _scene(tmp_path, scene)
+    track_video(folder / "frames.avi", tmp_path / "out", um_per_px=um, base=base)
+    _, acc = score_folder(folder, tmp_path / "out")
+    assert acc.frames_lost == 0
+    assert acc.angle_median < 0.5 and acc.angle_max < 1.0, acc
+    monkeypatch.setattr(track, "PIPETTE_LEANS_DEG", ())
+    track_video(folder / "frames.avi", tmp_path / "off", um_per_px=um, base=base)
+    _, off = score_folder(folder, tmp_path / "off")
+    assert off.angle_median > 2.0, off
