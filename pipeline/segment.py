@@ -948,7 +948,8 @@ def _detect_in(mask: np.ndarray, f: int, base_hint, base_end, *,
                outline: bool = False, network_ok: bool = True) -> Detection | None:
     """:func:`detect` on a foreground ``mask`` at 1/``f`` resolution: the
     largest structure, or the next where that is stubby (:data:`TUBE_MIN_HW`)
-    or lies off a given base (:func:`_off_the_base`)."""
+    or lies off a given base (:func:`_off_the_base`). Raises :class:`_Network`
+    where ``network_ok`` is False and the mask is a network of lines."""
     first = None
     for _ in range(CANDIDATES):
         det, filled = _detect_largest(mask, f, base_hint, base_end, outline=outline,
@@ -978,7 +979,9 @@ def _off_the_base(det: Detection, base_hint) -> bool:
 def _detect_largest(mask: np.ndarray, f: int, base_hint, base_end, *, outline: bool = False,
                     network_ok: bool = True) -> tuple[Detection | None, np.ndarray | None]:
     """:func:`detect` on the largest structure of a foreground ``mask`` at
-    1/``f`` resolution; and that structure, filled (None if there is none)."""
+    1/``f`` resolution; and that structure, filled (None if there is none).
+    Raises :class:`_Network` where ``network_ok`` is False and the filled
+    mask's skeleton branches at more than :data:`NETWORK_JUNCTIONS` places."""
     if mask.sum() < 20:
         return None, None
     # an outline is the band of the edges' gradient: the closing that fills it
