@@ -340,6 +340,15 @@ def fit_to_polyline(points, base_angle: float, *, n_coef: int, n_grid: int | Non
     return curve
 
 
+def angle_coef(basis: Basis, turn: np.ndarray) -> np.ndarray:
+    """Spline coefficients of the tangent's turn from the base, ``turn`` (rad,
+    on ``basis``'s grid): least squares, the tip's angle exactly (only the
+    last function reaches u = 1)."""
+    coef, *_ = np.linalg.lstsq(basis.values, turn, rcond=None)
+    coef[-1] = turn[-1]
+    return coef
+
+
 def cut_base(curve: Curve, s: float, base_angle: float | None = None,
              joints: tuple[float, ...] | None = None) -> Curve:
     """``curve`` from arc length ``s`` (px) on, with the same spline size and
@@ -362,9 +371,7 @@ def cut_base(curve: Curve, s: float, base_angle: float | None = None,
     basis = make_basis(curve.coef.size, basis_of(curve).n_grid, joints)
     if base_angle is None:
         base_angle = float(np.interp(s, arc, phi))   # (the base tangent's, for s < 0)
-    turn = np.interp(s + basis.u * length, arc, phi) - base_angle
-    coef, *_ = np.linalg.lstsq(basis.values, turn, rcond=None)
-    coef[-1] = turn[-1]     # the tip's angle exactly (only the last function reaches u = 1)
+    coef = angle_coef(basis, np.interp(s + basis.u * length, arc, phi) - base_angle)
     base = (complex(np.interp(s, arc, z.real), np.interp(s, arc, z.imag)) if s >= 0
             else curve.base + s * np.exp(1j * curve.base_angle))
     return Curve(base, float(base_angle), length, coef, joints)

@@ -47,7 +47,7 @@ from functools import cache
 import numpy as np
 from scipy.ndimage import gaussian_filter1d, map_coordinates
 
-from .centreline import Curve, basis_of, cut_base, evaluate, make_basis, resample
+from .centreline import Curve, angle_coef, basis_of, cut_base, evaluate, make_basis, resample
 from .profiles import sample_lines
 from .track import FrameTrack
 
@@ -624,6 +624,13 @@ def holder_axis(curve: Curve, s: float, half_width: float,
     return axis_angle(curve, s)
 
 
+def _direction_known(rms: float, n: int, span: float) -> bool:
+    """Whether a line through ``n`` points ``rms`` px off it, spanning
+    ``span`` px along it, has its direction to :data:`SYMMETRY_SE_DEG` (its
+    slope's standard error)."""
+    return bool(rms * np.sqrt(12.0 / n) <= np.radians(SYMMETRY_SE_DEG) * max(span, 1e-9))
+
+
 def edge_axis(image: np.ndarray, curve: Curve, s: float,
               half_width: float) -> float | None:
     """The axis of the holder whose end is ``s`` px along ``curve``, rad,
@@ -663,8 +670,7 @@ def edge_axis(image: np.ndarray, curve: Curve, s: float,
         if line is None or line[1] < EDGE_AXIS_KEEP * seen.sum():
             continue
         d, kept, rms, span = line
-        # (the line's direction to SYMMETRY_SE_DEG: its slope's standard error)
-        if rms * np.sqrt(12.0 / kept) > np.radians(SYMMETRY_SE_DEG) * max(span, 1e-9):
+        if not _direction_known(rms, kept, span):
             continue
         directions.append(d if (d * np.conj(ahead)).real > 0 else -d)
     if not directions:
@@ -755,9 +761,7 @@ def symmetric_axis(image: np.ndarray, curve: Curve, s: float,
     _, sv, vt = np.linalg.svd(xy, full_matrices=False)
     rms = sv[1] / np.sqrt(xy.shape[0])
     span = float(np.ptp(xy @ vt[0]))
-    # (the line's direction to SYMMETRY_SE_DEG: its slope's standard error)
-    if rms > SYMMETRY_LINE_PX or rms * np.sqrt(12.0 / xy.shape[0]) > np.radians(
-            SYMMETRY_SE_DEG) * max(span, 1e-9):
+    if rms > SYMMETRY_LINE_PX or not _direction_known(rms, xy.shape[0], span):
         return None
     d = complex(vt[0, 0], vt[0, 1])
     # (pointing from the holder to the tube, as the fit does)
@@ -838,10 +842,7 @@ def unhooked(curve: Curve, reach: float) -> Curve:
     reach : float
         px, under the curve's length.
     """
-    n = int(np.ceil(curve.length / 0.25)) + 1
-    basis = basis_of(curve, max(n, 2))
-    smp = evaluate(curve, basis)
-    arc, z, phi = basis.u * curve.length, smp.z, smp.phi
+    arc, z, phi, _ = _sampled(curve, 0.25)
     at = complex(np.interp(reach, arc, z.real), np.interp(reach, arc, z.imag))
     turn = float(np.interp(reach, arc, phi)) - curve.base_angle
     start = np.exp(1j * curve.base_angle)
@@ -850,9 +851,7 @@ def unhooked(curve: Curve, reach: float) -> Curve:
              else reach * start * (np.exp(1j * turn) - 1) / (1j * turn))
     ramp = np.where(arc < reach, curve.base_angle + turn * arc / reach, phi)
     fit = make_basis(curve.coef.size, basis_of(curve).n_grid, curve.joints)
-    target = np.interp(fit.u * curve.length, arc, ramp) - curve.base_angle
-    coef, *_ = np.linalg.lstsq(fit.values, target, rcond=None)
-    coef[-1] = target[-1]   # (the tip's angle exactly, as cut_base)
+    coef = angle_coef(fit, np.interp(fit.u * curve.length, arc, ramp) - curve.base_angle)
     return replace(curve, base=at - chord, coef=coef)
 
 

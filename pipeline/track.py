@@ -1052,7 +1052,8 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
     # the last shape seen whole (not at a crossing): what a hidden end follows
     last_whole: Curve | None = None
     # where the base was found on the first frames, and those frames' results
-    # (with the frames) held back until it is settled; not when it was given
+    # (with the frames) held back until it is settled (with --base, its
+    # tangent alone)
     votes = _BaseVotes()
     # a relief's edge steps until its shear direction can be told
     shear_votes = _ShearVotes()
