@@ -20,7 +20,7 @@ def render():
     from pipeline.render import render_scene
     from pipeline.tracking_report import _draw_scene, DRAWN_SEED
     import shutil
-    SCENES.mkdir(exist_ok=True)
+    SCENES.mkdir(parents=True, exist_ok=True)
     for name in ("sample1", "sample2", "sample3", "overcurl"):
         src = Path(__file__).resolve().parents[1] / "sample_frames" / name
         if not (SCENES / name).exists():

@@ -222,6 +222,26 @@ RESIDUAL_JUMP_FRAMES = 4
 #: (Settled fast fits move under 0.4 px in their last round; at a reversal
 #: 8-17 px.)
 UNSETTLED_MOVE_PX = 0.5
+#: A search's fit (wide, from a later frame, at the held length) that ran out
+#: of its WIDE_ROUNDS rounds while its centreline still moved by more than
+#: UNARRIVED_MOVE_PX px a round is run on for up to UNARRIVED_ROUNDS rounds more,
+#: and the longer fit kept where its edges' residual is at most UNARRIVED_GAIN of the
+#: stopped one's: a sudden pressure step (a tube that sprang back 88 deg) takes
+#: the tube far from the last shape and its prediction, and the fit stopped
+#: 6 deg short, still moving 3-15 px a round at 37x the converged residual
+#: (arrived at 16 rounds). A fit that only wanders (its end creeping along a
+#: faint relief, 4 px a round, its residual all but unchanged) is left as it
+#: stopped: more rounds ran its end on past the tube.
+WIDE_ROUNDS = 10
+#: A fit whose tip tangent turned by more than this fraction of a turn since
+#: the last frame is taken for a slip of the unwrapped angle, and the frame
+#: lost: a fit a coil further round (or back) turns by about a turn. Half a
+#: turn lost a tube that sprang back from 476 to 286 deg in one pressure step,
+#: fitted right (its edges at the video's residual).
+TURN_SLIP = 0.75
+UNARRIVED_ROUNDS = 20
+UNARRIVED_MOVE_PX = 1.0
+UNARRIVED_GAIN = 0.5
 #: At a crossing, a free fit whose length is within this fraction of the
 #: tube's own (on the last frames where it did not cross itself) is kept; one
 #: further off has found its end in the other layer, and the fit with the
@@ -1722,10 +1742,10 @@ def _from_later(image: np.ndarray, later: Curve, look: TubeLook, settings: Track
         if (after.coef.size, after.joints) != (later.coef.size, later.joints):
             after = rewritten(after, later.joints, later.coef.size)
         starts.append(_predict([after, later]))
-    fits = [refine(image, start, look, window=1.5 * look.mean_half_width, iterations=10,
-                   avoid_contact=crossing or (start is not later
-                                              and self_contact(start, look.mean_half_width)),
-                   tol_px=settings.tol_px) for start in starts]
+    fits = [_refine_on(image, start, look, window=1.5 * look.mean_half_width,
+                       avoid_contact=crossing or (start is not later
+                                                  and self_contact(start, look.mean_half_width)),
+                       tol_px=settings.tol_px) for start in starts]
     fits = [r for r in fits if _accepted(r, look, later.length)]
     if fits:
         return max(fits, key=_score)
@@ -1822,9 +1842,9 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
         # without a velocity the prediction is the last shape itself: one start
         starts = (pred,) if pred is history[-1] else (pred, history[-1])
         for start in starts:
-            cands.append(refine(image, start, look, window=1.5 * hw, iterations=10,
-                                avoid_contact=crossing or self_contact(start, hw),
-                                tol_px=tol, tip_ratio=held, mode=mode))
+            cands.append(_refine_on(image, start, look, window=1.5 * hw,
+                                    avoid_contact=crossing or self_contact(start, hw),
+                                    tol_px=tol, tip_ratio=held, mode=mode))
         stage = "wide"
         held_fits = []
         if typical_length is not None and (crossing or not any(accept(c) for c in cands)):
@@ -1932,9 +1952,10 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
                           iterations=10, avoid_contact=crossing, tol_px=tol)
             if accept(cand):
                 r = cand
-    # the unwrapped angle must move continuously: a jump of ~a turn is a slip
+    # the unwrapped angle must move continuously: a jump of about a turn is a
+    # slip (the fit a coil further round, or back), not the tube's own motion
     jump = abs(r.curve.coef[-1] - history[-1].coef[-1])
-    if jump > np.pi:
+    if jump > TURN_SLIP * 2 * np.pi:
         return FrameTrack(index, "lost: bend angle jumped by about a turn", None, stage,
                           r.residual_px, r.valid_fraction, work, crossing=crossing)
     return FrameTrack(index, "ok", _reported(r), stage, r.residual_px, r.valid_fraction, work,
@@ -2147,6 +2168,18 @@ def _redetect(image, prev: Curve, look: TubeLook, settings: TrackSettings) -> Re
 HELD_VIEW_U = 0.5
 
 
+def _refine_on(image, start: Curve, look: TubeLook, **kwargs) -> Refined:
+    """:func:`refine` from ``start`` for :data:`WIDE_ROUNDS` rounds, run on
+    where it stopped still moving (:data:`UNARRIVED_ROUNDS`) and the longer fit
+    fitted the edges clearly better (:data:`UNARRIVED_GAIN`); ``kwargs`` as for
+    :func:`refine`, bar ``iterations``."""
+    r = refine(image, start, look, iterations=WIDE_ROUNDS, **kwargs)
+    if r.iterations < WIDE_ROUNDS or r.last_move_px <= UNARRIVED_MOVE_PX:
+        return r
+    on = refine(image, r.curve, look, iterations=UNARRIVED_ROUNDS, **kwargs)
+    return on if on.residual_px <= UNARRIVED_GAIN * r.residual_px else r
+
+
 def _held_length_fits(image, starts, look: TubeLook, length: float, tol: float,
                       tip_ratio: float | None, *, avoid_contact: bool = True,
                       mode: np.ndarray | None = None, free: bool = True
@@ -2164,9 +2197,9 @@ def _held_length_fits(image, starts, look: TubeLook, length: float, tol: float,
     ``free``d, of one whose fit's length jumped: :data:`LENGTH_JUMP`.)"""
     held, freed = [], []
     for start in starts:
-        fit = refine(image, start.with_params(start.coef, length), look,
-                     window=1.5 * look.mean_half_width, iterations=10, fit_length=False,
-                     avoid_contact=avoid_contact, tol_px=tol, tip_ratio=tip_ratio, mode=mode)
+        fit = _refine_on(image, start.with_params(start.coef, length), look,
+                         window=1.5 * look.mean_half_width, fit_length=False,
+                         avoid_contact=avoid_contact, tol_px=tol, tip_ratio=tip_ratio, mode=mode)
         held.append(replace(fit, length_held=True))
         if avoid_contact and free:
             freed.append(refine(image, fit.curve, look, iterations=10, avoid_contact=True,
