@@ -233,15 +233,15 @@ UNSETTLED_MOVE_PX = 0.5
 #: faint relief, 4 px a round, its residual all but unchanged) is left as it
 #: stopped: more rounds ran its end on past the tube.
 WIDE_ROUNDS = 10
+UNARRIVED_ROUNDS = 20
+UNARRIVED_MOVE_PX = 1.0
+UNARRIVED_GAIN = 0.5
 #: A fit whose tip tangent turned by more than this fraction of a turn since
 #: the last frame is taken for a slip of the unwrapped angle, and the frame
 #: lost: a fit a coil further round (or back) turns by about a turn. Half a
 #: turn lost a tube that sprang back from 476 to 286 deg in one pressure step,
 #: fitted right (its edges at the video's residual).
 TURN_SLIP = 0.75
-UNARRIVED_ROUNDS = 20
-UNARRIVED_MOVE_PX = 1.0
-UNARRIVED_GAIN = 0.5
 #: At a crossing, a free fit whose length is within this fraction of the
 #: tube's own (on the last frames where it did not cross itself) is kept; one
 #: further off has found its end in the other layer, and the fit with the
