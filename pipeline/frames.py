@@ -56,8 +56,16 @@ def _natural_key(path: Path):
             for t in re.split(r"(\d+)", path.name)]
 
 
-def _to_grey(img: np.ndarray, where: str, *, rgb: bool = False) -> np.ndarray:
-    """2-D grey frame from a grey, grey+alpha, BGR(A) or (``rgb=True``) RGB(A) image."""
+#: The colour channels :func:`open_frames` can take alone instead of the
+#: luminance, and their places in an RGB image.
+CHANNELS = {"red": 0, "green": 1, "blue": 2}
+
+
+def _to_grey(img: np.ndarray, where: str, *, rgb: bool = False,
+             channel: str | None = None) -> np.ndarray:
+    """2-D grey frame from a grey, grey+alpha, BGR(A) or (``rgb=True``) RGB(A)
+    image: the luminance, or a colour image's ``channel`` alone (a name of
+    :data:`CHANNELS`)."""
     if img.ndim == 2:
         return img
     if img.ndim != 3 or img.shape[2] not in (1, 2, 3, 4):
@@ -66,6 +74,9 @@ def _to_grey(img: np.ndarray, where: str, *, rgb: bool = False) -> np.ndarray:
     channels = img.shape[2]
     if channels <= 2:  # grey, or grey + alpha: the alpha carries no brightness
         return np.ascontiguousarray(img[:, :, 0])
+    if channel is not None:
+        k = CHANNELS[channel]
+        return np.ascontiguousarray(img[:, :, k if rgb else 2 - k])
     if img.dtype not in (np.uint8, np.uint16, np.float32):
         img = img.astype(np.float32)
     if rgb:
@@ -94,8 +105,10 @@ def _native_dtype(img: np.ndarray, where: str) -> np.ndarray:
     raise FrameError(f"{where}: unsupported pixel type {img.dtype}")
 
 
-def _tiff_page(page, where: str) -> np.ndarray:
-    """One TIFF page as a native-dtype grey frame."""
+def _tiff_page(page, where: str, channel: str | None = None, *,
+               grey: bool = True) -> np.ndarray:
+    """One TIFF page as a native-dtype grey frame (``channel``: see
+    :func:`_to_grey`); with ``grey=False``, as it is stored, its samples last."""
     try:
         img = page.asarray()
     except Exception as exc:  # tifffile raises many types on corrupt data
@@ -103,11 +116,14 @@ def _tiff_page(page, where: str) -> np.ndarray:
                          f"{_one_line(exc)})") from None
     if img.ndim == 3 and getattr(page, "axes", "").startswith("S"):
         img = np.moveaxis(img, 0, -1)  # planar (separate) samples -> channels last
-    return _native_dtype(_to_grey(img, where, rgb=True), where)
+    if not grey:
+        return img
+    return _native_dtype(_to_grey(img, where, rgb=True, channel=channel), where)
 
 
-def _read_image(path: Path, where: str) -> np.ndarray:
-    """A single image file as a native-dtype grey frame (first page of a TIFF)."""
+def _read_image(path: Path, where: str, channel: str | None = None) -> np.ndarray:
+    """A single image file as a native-dtype grey frame (first page of a TIFF;
+    ``channel``: see :func:`_to_grey`)."""
     if path.suffix.lower() in TIFF_SUFFIXES:
         import tifffile
 
@@ -115,7 +131,7 @@ def _read_image(path: Path, where: str) -> np.ndarray:
             with tifffile.TiffFile(path) as tif:
                 if not len(tif.pages):
                     raise FrameError(f"{where}: the TIFF holds no pages")
-                return _tiff_page(tif.pages[0], where)
+                return _tiff_page(tif.pages[0], where, channel)
         except FrameError:
             raise
         except Exception as exc:
@@ -128,7 +144,7 @@ def _read_image(path: Path, where: str) -> np.ndarray:
         size = _size(path)
         why = "empty file (0 bytes)" if size == 0 else "not a readable image"
         raise FrameError(f"{where}: {why}")
-    return _native_dtype(_to_grey(img, where), where)
+    return _native_dtype(_to_grey(img, where, channel=channel), where)
 
 
 def _size(path: Path) -> int | None:
@@ -192,13 +208,18 @@ class FrameReader:
         (read-only): a run looks at it several times before it tracks, and a
         video re-opened and decoded for each look cost up to 90 ms each
         (1024x768 FFV1).
+    channel : str or None
+        The colour channel a colour source's frames are taken from (a name of
+        :data:`CHANNELS`); None: their luminance.
     """
 
     def __init__(self, source: Path, kind: str, count: int, fps: float | None,
-                 first: np.ndarray, files: list[Path] | None = None):
+                 first: np.ndarray, files: list[Path] | None = None,
+                 channel: str | None = None):
         self.source = source
         self.kind = kind
         self.fps = fps
+        self.channel = channel
         self.frame_shape = tuple(first.shape)
         self.dtype = first.dtype
         self.first = first
@@ -206,6 +227,8 @@ class FrameReader:
         self._count = count
         self._files = files
         self._live = weakref.WeakSet()
+        #: a Motion-JPEG video's first frame as stored (for first_colour)
+        self._first_jpeg: np.ndarray | None = None
 
     def __len__(self) -> int:
         """Number of frames; for videos the container's count (best effort)."""
@@ -250,7 +273,7 @@ class FrameReader:
         n = len(self._files)
         for i, path in enumerate(self._files):
             where = f"{path} (image {i} of {n})" if self.kind == "folder" else str(path)
-            yield self._check(_read_image(path, where), where)
+            yield self._check(_read_image(path, where, self.channel), where)
 
     def _iter_tiff(self) -> Iterator[np.ndarray]:
         import tifffile
@@ -265,11 +288,11 @@ class FrameReader:
             tif.pages.cache = False
             for i, page in enumerate(tif.pages):
                 where = f"{self.source} (page {i})"
-                yield self._check(_tiff_page(page, where), where)
+                yield self._check(_tiff_page(page, where, self.channel), where)
 
     def _iter_video(self) -> Iterator[np.ndarray]:
         i = -1
-        for i, grey in enumerate(_video_frames(self.source)):
+        for i, grey in enumerate(_video_frames(self.source, channel=self.channel)):
             yield self._check(grey, f"{self.source} (frame {i})")
         if i < 0:
             raise FrameError(f"{self.source}: no frames could be decoded")
@@ -283,7 +306,7 @@ def require_source(source) -> Path:
     return path
 
 
-def open_frames(source) -> FrameReader:
+def open_frames(source, channel: str | None = None) -> FrameReader:
     """Open a video, a folder of images, a multi-page TIFF or a single image.
 
     Only the first frame is decoded here (for ``frame_shape`` and ``dtype``);
@@ -298,6 +321,9 @@ def open_frames(source) -> FrameReader:
         before ``frame10``; other files and hidden files are ignored); a TIFF
         with one or more pages (read page by page; a hyperstack with
         channels or z-slices at every time point is refused); or one image file.
+    channel : {"red", "green", "blue"}, optional
+        Take a colour source's frames from this channel alone (grey ones as
+        they are); default: their luminance.
 
     Returns
     -------
@@ -312,37 +338,40 @@ def open_frames(source) -> FrameReader:
         Missing, empty, unsupported, unreadable or inconsistent input.
     """
     path = require_source(source)
+    if channel is not None and channel not in CHANNELS:
+        raise FrameError(f"unknown colour channel {channel!r} (one of {', '.join(CHANNELS)})")
     try:
         if path.is_dir():
-            return _open_folder(path)
+            return _open_folder(path, channel)
         if path.stat().st_size == 0:
             raise FrameError(f"{path}: empty file (0 bytes)")
     except OSError as exc:
         raise FrameError(f"{path}: cannot be read ({_one_line(exc)})") from None
     suffix = path.suffix.lower()
     if suffix in TIFF_SUFFIXES:
-        return _open_tiff(path)
+        return _open_tiff(path, channel)
     if suffix in IMAGE_SUFFIXES:
-        return FrameReader(path, "image", 1, None, _read_image(path, str(path)), [path])
+        return FrameReader(path, "image", 1, None, _read_image(path, str(path), channel),
+                           [path], channel)
     if suffix in VIDEO_SUFFIXES:
-        return _open_video(path)
+        return _open_video(path, channel)
     raise FrameError(f"{path}: unsupported file type {suffix or '(no suffix)'}: give a video "
                      f"({', '.join(VIDEO_SUFFIXES[:4])}, ...), an image, a TIFF stack or a "
                      "folder of images")
 
 
-def _open_folder(path: Path) -> FrameReader:
+def _open_folder(path: Path, channel: str | None = None) -> FrameReader:
     files = sorted((p for p in path.iterdir()
                     if p.suffix.lower() in IMAGE_SUFFIXES and not p.name.startswith(".")
                     and p.is_file()), key=_natural_key)
     if not files:
         raise FrameError(f"{path}: the folder holds no images "
                          f"({', '.join(IMAGE_SUFFIXES)})")
-    first = _read_image(files[0], f"{files[0]} (image 0 of {len(files)})")
-    return FrameReader(path, "folder", len(files), None, first, files)
+    first = _read_image(files[0], f"{files[0]} (image 0 of {len(files)})", channel)
+    return FrameReader(path, "folder", len(files), None, first, files, channel)
 
 
-def _open_tiff(path: Path) -> FrameReader:
+def _open_tiff(path: Path, channel: str | None = None) -> FrameReader:
     import tifffile
 
     try:
@@ -351,14 +380,58 @@ def _open_tiff(path: Path) -> FrameReader:
             if not count:
                 raise FrameError(f"{path}: no frames (the TIFF holds no pages)")
             _refuse_hyperstack(tif, path)
-            first = _tiff_page(tif.pages[0], f"{path} (page 0)")
+            first = _tiff_page(tif.pages[0], f"{path} (page 0)", channel)
             fps = _tiff_fps(tif)
     except FrameError:
         raise
     except Exception as exc:  # tifffile raises many types on corrupt files
         raise FrameError(f"{path}: not a readable TIFF ({type(exc).__name__}: "
                          f"{_one_line(exc)})") from None
-    return FrameReader(path, "tiff", count, fps, first)
+    return FrameReader(path, "tiff", count, fps, first, channel=channel)
+
+
+def first_colour(reader: FrameReader) -> np.ndarray | None:
+    """The reader's first frame in colour: (rows, cols, 3) RGB in its native
+    dtype, or None where the source is grey (also a grey image stored as
+    colour: its channels, each less its median, equal within 2 % of their
+    range at 99 % of the pixels, as a grey video coded in colour decodes: an
+    MPEG-4 one's channels 3 levels apart)."""
+    where = f"{reader.source} (first frame)"
+    try:
+        if reader.kind == "video" and reader._first_jpeg is not None:
+            # (decoded again from its bytes: re-opening the video cost 13 ms)
+            img = cv2.imdecode(reader._first_jpeg, cv2.IMREAD_COLOR | cv2.IMREAD_IGNORE_ORIENTATION)
+            rgb = False
+        elif reader.kind == "video":
+            cap = cv2.VideoCapture(str(reader.source))
+            try:
+                ok, img = cap.read()
+            finally:
+                cap.release()
+            img = img if ok else None
+            rgb = False
+        elif reader.kind == "tiff" or reader._files[0].suffix.lower() in TIFF_SUFFIXES:
+            import tifffile
+
+            with tifffile.TiffFile(reader._files[0] if reader._files else reader.source) as tif:
+                img = _tiff_page(tif.pages[0], where, grey=False)
+            rgb = True
+        else:
+            img = cv2.imread(str(reader._files[0]), _IMREAD_FLAGS)
+            rgb = False
+    except (cv2.error, OSError, ValueError):
+        return None
+    if img is None or img.ndim != 3 or img.shape[2] < 3 or img.shape[:2] != reader.frame_shape:
+        return None
+    img = img[:, :, :3] if rgb else img[:, :, 2::-1]
+    # (on every 4th row and column: a whole frame's statistics cost 0.2 s)
+    some = img[::4, ::4]
+    span = float(np.ptp(some)) or 1.0
+    centred = some.reshape(-1, 3).astype(np.float32)
+    centred -= np.median(centred, axis=0)
+    if np.percentile(np.abs(np.diff(centred, axis=1)).max(axis=1), 99) <= 0.02 * span:
+        return None
+    return _native_dtype(np.ascontiguousarray(img), where)
 
 
 def _refuse_hyperstack(tif, path: Path) -> None:
@@ -384,9 +457,9 @@ def _refuse_hyperstack(tif, path: Path) -> None:
 _AXIS_NAMES = {"T": "times", "C": "channels", "Z": "z-slices", "Q": "images", "I": "images"}
 
 
-def _open_video(path: Path) -> FrameReader:
+def _open_video(path: Path, channel: str | None = None) -> FrameReader:
     meta = {}
-    frames = _video_frames(path, meta)
+    frames = _video_frames(path, meta, channel=channel)
     try:
         first = next(frames, None)
     finally:
@@ -394,7 +467,9 @@ def _open_video(path: Path) -> FrameReader:
     if first is None:
         raise FrameError(f"{path}: no frames (the video opens but its first frame cannot "
                          "be decoded)")
-    return FrameReader(path, "video", meta["count"], meta["fps"], first)
+    reader = FrameReader(path, "video", meta["count"], meta["fps"], first, channel=channel)
+    reader._first_jpeg = meta.get("first_jpeg")
+    return reader
 
 
 _MJPG = cv2.VideoWriter_fourcc(*"MJPG")
@@ -418,9 +493,11 @@ def _quiet_imdecode(data: np.ndarray, null: int) -> np.ndarray | None:
         os.close(saved)
 
 
-def _video_frames(path: Path, meta: dict | None = None) -> Iterator[np.ndarray]:
+def _video_frames(path: Path, meta: dict | None = None, *,
+                  channel: str | None = None) -> Iterator[np.ndarray]:
     """Grey frames of a video, decoded one at a time; on opening, ``meta`` (if
-    given) gets the container's ``count`` (>= 1, best effort) and ``fps``.
+    given) gets the container's ``count`` (>= 1, best effort) and ``fps``;
+    ``channel``: see :func:`_to_grey`.
 
     Motion-JPEG frames are decoded straight to grey from their compressed
     bytes: a JPEG holds luminance as a channel of its own, with the weights of
@@ -441,7 +518,8 @@ def _video_frames(path: Path, meta: dict | None = None) -> Iterator[np.ndarray]:
             meta["count"] = int(count) if np.isfinite(count) and count > 0 else 1
             meta["fps"] = _valid_fps(cap.get(cv2.CAP_PROP_FPS))
         shape = (int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT)), int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)))
-        raw = int(cap.get(cv2.CAP_PROP_FOURCC)) == _MJPG and cap.set(cv2.CAP_PROP_FORMAT, -1)
+        raw = (channel is None and int(cap.get(cv2.CAP_PROP_FOURCC)) == _MJPG
+               and cap.set(cv2.CAP_PROP_FORMAT, -1))
         null = os.open(os.devnull, os.O_WRONLY) if raw else None
         i = 0
         while True:
@@ -449,6 +527,8 @@ def _video_frames(path: Path, meta: dict | None = None) -> Iterator[np.ndarray]:
             if not ok or img is None:
                 break  # end of stream; a truncated file simply ends early
             if raw:
+                if i == 0 and meta is not None:
+                    meta["first_jpeg"] = img.copy()
                 grey = _quiet_imdecode(img, null) if img.size else None
                 if grey is None or grey.shape != shape:
                     raw = False  # this frame again, and the rest, decoded by OpenCV
@@ -458,7 +538,7 @@ def _video_frames(path: Path, meta: dict | None = None) -> Iterator[np.ndarray]:
                         cap.grab()
                     continue
             else:
-                grey = _to_grey(img, f"{path} (frame {i})")
+                grey = _to_grey(img, f"{path} (frame {i})", channel=channel)
             yield grey
             i += 1
     except cv2.error as exc:

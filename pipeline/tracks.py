@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import time
 from collections import Counter
+from contextlib import ExitStack
 from dataclasses import asdict, dataclass, replace
 from functools import partial
 from pathlib import Path
@@ -22,6 +23,7 @@ from . import schema as S
 from .atomic import write_csv, write_json
 from .binning import Binning
 from .centreline import Curve, fit_to_polyline, resample, tip_point
+from .colour import ChannelChoice, choose_channel
 from .drift import FOLLOW_MIN_PX
 from .field import field_stop
 from .levels import levels_of
@@ -226,33 +228,26 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
               else tuple(float(f) for f in np.cumsum(sample.fractions)[:-1]))
     out_dir = Path(out_dir)
     start = time.perf_counter()
-    with open_frames(source) as reader:
+    with ExitStack() as opened:
+        reader = opened.enter_context(open_frames(source))
         total = len(reader)
         rows, cols = reader.frame_shape
         if base_hint is not None and not (0 <= base_hint[0] < cols and 0 <= base_hint[1] < rows):
             raise ValueError(f"--base {base_hint} lies outside the {cols}x{rows} image")
         rate = fps or reader.fps
-        # (a 10-bit camera's counts in 16-bit files: scaled to the full range first)
-        levels = levels_of(reader.first)
-        source_frames = _Mapped(reader, levels.frame) if levels else reader
-        margins = blank_margins(source_frames.first)
-        frames = _Mapped(source_frames, margins.crop) if margins else source_frames
-        kept = margins.crop(source_frames.first).shape[:2]
-        # (on the frame without its margins: a letterboxed field stop)
-        stop = field_stop(margins.crop(source_frames.first))
-        if stop:
-            frames = _Mapped(frames, stop.fill)
-        if base_hint is not None and margins:
-            base_hint = (base_hint[0] - margins.left, base_hint[1] - margins.top)
-            if not (0 <= base_hint[0] < kept[1] and 0 <= base_hint[1] < kept[0]):
-                raise ValueError(f"--base lies in the frame's blank margin ({margins.sides()})")
+        given_base = base_hint
+        levels, margins, stop, frames, base_hint, first_det = _prepared(reader, given_base)
+        colour = _colour_choice(reader, margins, first_det, base_hint, settings)
+        if colour is not None and colour.channel is not None:
+            reader = opened.enter_context(open_frames(source, channel=colour.channel))
+            levels, margins, stop, frames, base_hint, first_det = _prepared(reader, given_base)
+        kept = margins.crop(reader.first).shape[:2]
 
         def tick(i):
             if progress is not None:
                 progress(i + 1, total)
 
         # a tube many pixels wide is tracked on binned frames (see pipeline.binning)
-        first_det = _first_detection(frames, base_hint)
         binning = (Binning.for_half_width(first_det.half_width) if first_det is not None
                    else Binning())
         if binning:
@@ -345,6 +340,8 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
         notes.append(holder_note)
     if motion_note:
         notes.append(motion_note)
+    if colour is not None:
+        notes.append(colour.describe())
     if levels:
         notes.append(levels.describe())
     if margins:
@@ -390,6 +387,42 @@ class _Mapped:
     def first(self) -> np.ndarray:
         """The first frame, seen through ``view`` (the reader decodes it once)."""
         return self._view(self._frames.first)
+
+
+def _prepared(reader, base_hint):
+    """The reader's frames as the tracker sees them, and the tube found on
+    the first: ``(levels, margins, stop, frames, base_hint, detection)``
+    (``base_hint``, (col, row) px or None, then on the frames without their
+    blank margins)."""
+    # (a 10-bit camera's counts in 16-bit files: scaled to the full range first)
+    levels = levels_of(reader.first)
+    source_frames = _Mapped(reader, levels.frame) if levels else reader
+    margins = blank_margins(source_frames.first)
+    frames = _Mapped(source_frames, margins.crop) if margins else source_frames
+    kept = margins.crop(source_frames.first).shape[:2]
+    # (on the frame without its margins: a letterboxed field stop)
+    stop = field_stop(margins.crop(source_frames.first))
+    if stop:
+        frames = _Mapped(frames, stop.fill)
+    if base_hint is not None and margins:
+        base_hint = (base_hint[0] - margins.left, base_hint[1] - margins.top)
+        if not (0 <= base_hint[0] < kept[1] and 0 <= base_hint[1] < kept[0]):
+            raise ValueError(f"--base lies in the frame's blank margin ({margins.sides()})")
+    return levels, margins, stop, frames, base_hint, _first_detection(frames, base_hint)
+
+
+def _colour_choice(reader, margins, detection, base_hint, settings
+                   ) -> ChannelChoice | None:
+    """Which grey a colour source is tracked in (:mod:`pipeline.colour`),
+    from its first frame without its blank margins and the tube found on it
+    (``detection``, in the luminance); None for a grey source."""
+    from .frames import first_colour
+
+    rgb = first_colour(reader)
+    if rgb is None:
+        return None
+    rgb = np.dstack([margins.crop(rgb[:, :, k]) for k in range(3)])
+    return choose_channel(rgb, detection, base_hint=base_hint, settings=settings)
 
 
 def _first_detection(frames, base_hint=None):
