@@ -45,14 +45,19 @@ class ChannelChoice:
     channel : str or None
         The channel taken alone (a name of :data:`pipeline.frames.CHANNELS`);
         None: the luminance.
-    scatter : dict
+    scatter : dict of str to float
         The edge midpoints' scatter in each grey looked at, px, by name
         (``"luminance"`` and the channels'; inf where the tube was not found
         there); empty where no tube was found to compare them on.
+    lost : bool
+        A channel was chosen, but the tracker's start found no tube in it
+        over the whole first frame (where the luminance's did): the
+        luminance is kept.
     """
 
     channel: str | None
     scatter: dict
+    lost: bool = False
 
     def describe(self) -> str:
         """One line for the run's record of what was done and why."""
@@ -60,6 +65,14 @@ class ChannelChoice:
             return ("colour frames: tracked on their luminance (no tube found to compare the "
                     "channels on)")
         each = ", ".join(f"{k} {v:.3f}" for k, v in self.scatter.items())
+        if self.lost:
+            return (f"colour frames: tracked on their luminance (the channel whose edges were "
+                    f"measured most precisely showed no tube over the whole first frame; the "
+                    f"edge midpoints' scatter on it, px: {each})")
+        if not np.isfinite(self.scatter["luminance"]):
+            return (f"colour frames: tracked on the {self.channel} channel alone: no tube was "
+                    f"found in their luminance (the edge midpoints' scatter on the first frame, "
+                    f"px: {each})")
         if self.channel is None:
             return (f"colour frames: tracked on their luminance (in no channel alone are the "
                     f"tube's edges measured {CHANNEL_GAIN:g}x as precisely; the edge midpoints' "
@@ -83,6 +96,7 @@ def choose_channel(rgb: np.ndarray, detection=None, *, base_hint=None,
     base_hint : (col, row), optional
         Where the base is, px (``--base``), for finding the tube.
     settings : pipeline.track.TrackSettings, optional
+        The tracker's settings, for its start (default: its defaults).
 
     Returns
     -------

@@ -2,8 +2,10 @@
 
 Frames are streamed one at a time (memory stays flat in the number of frames)
 as 2-D greyscale arrays in their native dtype (uint8, uint16 or float32).
-Colour input is converted to grey by luminance. Every problem with the input
-raises :class:`FrameError` with one line naming the file and what is wrong.
+Colour input is converted to grey by luminance, or taken from one channel
+alone (``open_frames(channel=...)``: :mod:`pipeline.colour` says which).
+Every problem with the input raises :class:`FrameError` with one line naming
+the file and what is wrong.
 
 Writers (:func:`write_frames`) are atomic: the output appears complete or not
 at all, whatever happens to the frame iterable midway.
@@ -74,11 +76,11 @@ def _to_grey(img: np.ndarray, where: str, *, rgb: bool = False,
     channels = img.shape[2]
     if channels <= 2:  # grey, or grey + alpha: the alpha carries no brightness
         return np.ascontiguousarray(img[:, :, 0])
+    if img.dtype not in (np.uint8, np.uint16, np.float32):
+        img = img.astype(np.float32)
     if channel is not None:
         k = CHANNELS[channel]
         return np.ascontiguousarray(img[:, :, k if rgb else 2 - k])
-    if img.dtype not in (np.uint8, np.uint16, np.float32):
-        img = img.astype(np.float32)
     if rgb:
         code = cv2.COLOR_RGB2GRAY if channels == 3 else cv2.COLOR_RGBA2GRAY
     else:
@@ -211,11 +213,14 @@ class FrameReader:
     channel : str or None
         The colour channel a colour source's frames are taken from (a name of
         :data:`CHANNELS`); None: their luminance.
+    first_jpeg : ndarray or None
+        A Motion-JPEG video's first frame as stored (its bytes), where it was
+        decoded from them: :func:`first_colour` decodes it again in colour.
     """
 
     def __init__(self, source: Path, kind: str, count: int, fps: float | None,
                  first: np.ndarray, files: list[Path] | None = None,
-                 channel: str | None = None):
+                 channel: str | None = None, first_jpeg: np.ndarray | None = None):
         self.source = source
         self.kind = kind
         self.fps = fps
@@ -227,8 +232,7 @@ class FrameReader:
         self._count = count
         self._files = files
         self._live = weakref.WeakSet()
-        #: a Motion-JPEG video's first frame as stored (for first_colour)
-        self._first_jpeg: np.ndarray | None = None
+        self.first_jpeg = first_jpeg
 
     def __len__(self) -> int:
         """Number of frames; for videos the container's count (best effort)."""
@@ -391,16 +395,34 @@ def _open_tiff(path: Path, channel: str | None = None) -> FrameReader:
 
 
 def first_colour(reader: FrameReader) -> np.ndarray | None:
-    """The reader's first frame in colour: (rows, cols, 3) RGB in its native
-    dtype, or None where the source is grey (also a grey image stored as
-    colour: its channels, each less its median, equal within 2 % of their
-    range at 99 % of the pixels, as a grey video coded in colour decodes: an
-    MPEG-4 one's channels 3 levels apart)."""
+    """The reader's first frame in colour.
+
+    Parameters
+    ----------
+    reader : FrameReader
+
+    Returns
+    -------
+    (rows, cols, 3) ndarray or None
+        RGB, in the frame's native dtype (uint8, uint16 or float32); None
+        where the source is grey, also a grey image stored as colour: its
+        channels, each less its median, equal within 2 % of their range at
+        99 % of the pixels (on every 4th row and column), as a grey video
+        coded in colour decodes (an MPEG-4 one's channels 3 levels apart).
+        (A colour tube on a background clipped white in every channel, under
+        1 % of the frame, passes for grey too: it is tracked in the
+        luminance, as before channels were looked at.)
+    """
     where = f"{reader.source} (first frame)"
     try:
-        if reader.kind == "video" and reader._first_jpeg is not None:
+        if reader.kind == "video" and reader.first_jpeg is not None:
             # (decoded again from its bytes: re-opening the video cost 13 ms)
-            img = cv2.imdecode(reader._first_jpeg, cv2.IMREAD_COLOR | cv2.IMREAD_IGNORE_ORIENTATION)
+            null = os.open(os.devnull, os.O_WRONLY)
+            try:
+                img = _quiet_imdecode(reader.first_jpeg, null,
+                                      cv2.IMREAD_COLOR | cv2.IMREAD_IGNORE_ORIENTATION)
+            finally:
+                os.close(null)
             rgb = False
         elif reader.kind == "video":
             cap = cv2.VideoCapture(str(reader.source))
@@ -424,6 +446,9 @@ def first_colour(reader: FrameReader) -> np.ndarray | None:
     if img is None or img.ndim != 3 or img.shape[2] < 3 or img.shape[:2] != reader.frame_shape:
         return None
     img = img[:, :, :3] if rgb else img[:, :, 2::-1]
+    if img.dtype not in (np.uint8, np.uint16, np.float32):
+        # (as the luminance is made of them: int16 or 32-bit counts as float)
+        img = img.astype(np.float32)
     # (on every 4th row and column: a whole frame's statistics cost 0.2 s)
     some = img[::4, ::4]
     span = float(np.ptp(some)) or 1.0
@@ -431,7 +456,10 @@ def first_colour(reader: FrameReader) -> np.ndarray | None:
     centred -= np.median(centred, axis=0)
     if np.percentile(np.abs(np.diff(centred, axis=1)).max(axis=1), 99) <= 0.02 * span:
         return None
-    return _native_dtype(np.ascontiguousarray(img), where)
+    try:
+        return _native_dtype(np.ascontiguousarray(img), where)
+    except FrameError:
+        return None
 
 
 def _refuse_hyperstack(tif, path: Path) -> None:
@@ -467,9 +495,8 @@ def _open_video(path: Path, channel: str | None = None) -> FrameReader:
     if first is None:
         raise FrameError(f"{path}: no frames (the video opens but its first frame cannot "
                          "be decoded)")
-    reader = FrameReader(path, "video", meta["count"], meta["fps"], first, channel=channel)
-    reader._first_jpeg = meta.get("first_jpeg")
-    return reader
+    return FrameReader(path, "video", meta["count"], meta["fps"], first, channel=channel,
+                       first_jpeg=meta.get("first_jpeg"))
 
 
 _MJPG = cv2.VideoWriter_fourcc(*"MJPG")
@@ -477,8 +504,9 @@ _MJPG = cv2.VideoWriter_fourcc(*"MJPG")
 _JPEG_GREY = cv2.IMREAD_GRAYSCALE | cv2.IMREAD_IGNORE_ORIENTATION
 
 
-def _quiet_imdecode(data: np.ndarray, null: int) -> np.ndarray | None:
-    """``cv2.imdecode(data, _JPEG_GREY)`` with the process's stderr pointed at
+def _quiet_imdecode(data: np.ndarray, null: int, flags: int = _JPEG_GREY
+                    ) -> np.ndarray | None:
+    """``cv2.imdecode(data, flags)`` with the process's stderr pointed at
     ``null`` (an open file descriptor of os.devnull) meanwhile: libjpeg prints
     its warnings on a damaged frame ("Corrupt JPEG data: ...") straight to it,
     where they would break the command line's one-line messages (as FFmpeg's
@@ -487,7 +515,7 @@ def _quiet_imdecode(data: np.ndarray, null: int) -> np.ndarray | None:
     saved = os.dup(2)
     try:
         os.dup2(null, 2)
-        return cv2.imdecode(data, _JPEG_GREY)
+        return cv2.imdecode(data, flags)
     finally:
         os.dup2(saved, 2)
         os.close(saved)
@@ -527,9 +555,9 @@ def _video_frames(path: Path, meta: dict | None = None, *,
             if not ok or img is None:
                 break  # end of stream; a truncated file simply ends early
             if raw:
-                if i == 0 and meta is not None:
-                    meta["first_jpeg"] = img.copy()
                 grey = _quiet_imdecode(img, null) if img.size else None
+                if i == 0 and meta is not None and grey is not None and grey.shape == shape:
+                    meta["first_jpeg"] = img.copy()
                 if grey is None or grey.shape != shape:
                     raw = False  # this frame again, and the rest, decoded by OpenCV
                     cap.release()

@@ -106,6 +106,20 @@ def test_a_motion_jpeg_video_is_read_in_colour_too(tmp_path):
     assert len(frames) == 2 and np.abs(frames[1].astype(float) - rgb[:, :, 2]).mean() < 4
 
 
+def test_signed_colour_tiffs_are_read_in_colour(tmp_path):
+    # (int16 counts, some below 0: as their luminance is, read as float)
+    import tifffile
+
+    rng = np.random.default_rng(2)
+    rgb = rng.integers(-20, 236, (40, 60, 3)).astype(np.int16)
+    tifffile.imwrite(tmp_path / "s.tif", rgb, photometric="rgb")
+    with open_frames(tmp_path / "s.tif") as reader:
+        got = first_colour(reader)
+    assert got.dtype == np.float32 and np.array_equal(got, rgb.astype(np.float32))
+    with open_frames(tmp_path / "s.tif", channel="green") as reader:
+        assert np.array_equal(reader.first, rgb[:, :, 1].astype(np.float32))
+
+
 def test_grey_stored_as_colour_with_offset_channels_is_grey(tmp_path):
     # (an MPEG-4 video of grey frames decodes with its channels a few levels apart)
     rng = np.random.default_rng(1)
