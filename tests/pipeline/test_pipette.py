@@ -19,19 +19,20 @@ TURN = -3.5
 
 
 def _video(tmp_path, holder: float | None, n: int = 8, base=BASE, turn=TURN, hw=HW,
-           holder_look: float = 0.5, capillary: tuple | None = None):
+           holder_look: float = 0.5, capillary: tuple | None = None, size=(480, 640)):
     """A dark tube bending clockwise from straight to 200 deg, held (``holder``:
     that many of its half-widths wide, ``holder_look`` times as dark, running to
     the border) or starting at the border itself, or held by a tapered glass
     capillary (``capillary``: its radius at the tube and far from it, and the
     taper's length, in half-widths, and its walls' depth; see
-    :func:`_capillary`); frames as PNGs, and the true bends (deg)."""
+    :func:`_capillary`); frames (``size``: rows, cols) as PNGs, and the true
+    bends (deg)."""
     folder = tmp_path / "frames"
     folder.mkdir()
     bends = []
     for k in range(n):
         kappa = turn * k / (n - 1) / LENGTH
-        img = tube_image((480, 640), base, ANGLE, LENGTH, kappa + 1e-12, hw, noise=0.01,
+        img = tube_image(size, base, ANGLE, LENGTH, kappa + 1e-12, hw, noise=0.01,
                          seed=k, pipette_half_width=None if holder is None else holder * hw,
                          pipette_contrast=holder_look)
         if capillary is not None:
@@ -77,6 +78,17 @@ def test_a_holder_showing_for_under_three_tube_widths_is_cut_off(tmp_path):
     # all, came out 1.4x as wide), by which a holder's shortest stretch is judged
     base = 600 - 240j
     folder, bends = _video(tmp_path, holder=1.0, base=base)
+    run = _cut_and_measured(folder, tmp_path / "out", bends, base=base)
+    assert any("holder (pipette) taken for the tube" in n for n in run["left_out_and_why"])
+
+
+def test_a_holder_far_longer_than_the_tube_is_cut_off(tmp_path):
+    # a holder crossing most of a wide frame: 980 px of it before a 300 px
+    # tube, which is under a quarter of the structure tracked (an independent
+    # renderer's pipette across half a 1280 px frame before a 90 px tube: its
+    # base had been put at the border, 595 px away)
+    base = 620 - 240j
+    folder, bends = _video(tmp_path, holder=1.0, base=base, size=(480, 1600))
     run = _cut_and_measured(folder, tmp_path / "out", bends, base=base)
     assert any("holder (pipette) taken for the tube" in n for n in run["left_out_and_why"])
 
