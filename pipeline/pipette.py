@@ -51,7 +51,9 @@ from .centreline import Curve, angle_coef, basis_of, cut_base, evaluate, make_ba
 from .profiles import sample_lines
 from .track import FrameTrack
 
-#: Frames bent at least this much (deg) tell the static stretch.
+#: Frames bent at least this much (deg) away from the first frame's bend tell
+#: the static stretch (a tube held bent, the same on every frame, tells none:
+#: all of it stands still).
 MIN_BEND_DEG = 45.0
 #: A point stays on the first frame's centreline within this (px, at least;
 #: and a fifth of the tube's half-width).
@@ -134,9 +136,9 @@ WOBBLE_QUANTILE = 0.8
 #: ... and the motion looked at there on at most this many frames, spread
 #: over the video (those scenes had 14-36) ...
 MOTION_FRAMES = 24
-#: ... and only where the tube bent by at least this on some frame (deg): a
-#: video that does not bend cannot tell a holder from a first section of other
-#: walls, whose profiles step too.
+#: ... and only where the tube bent by at least this on some frame (deg, from
+#: the first frame's bend): a video that does not bend cannot tell a holder
+#: from a first section of other walls, whose profiles step too.
 PROFILE_MIN_BEND_DEG = 20.0
 #: Where the motion cannot tell a holder (a tube bent too little, a holder
 #: the camera shakes with it), a stretch at the tracked structure's start
@@ -205,6 +207,27 @@ EDGE_AXIS_LINE_PX = 0.5
 UNHOOK_HW = 3.0
 UNHOOK_SHARE = 0.25
 UNHOOK_MIN_PX = 1.0
+#: A fit through a holder off the tube's axis, or wider than it, also runs
+#: through the holder's end face aslant, and the profiles across it mix the
+#: holder's with the tube's: the end found along it lay 2-4 px past the face
+#: (an independent renderer's pipettes 1.6x the tube's width, the fit 7 px off
+#: the tube's axis inside one; 19 px past it beside a holder 4 px off the
+#: tube's axis). So the end is looked for again along the tube's own axis
+#: (the first frame's curve cut there and unhooked, carried straight back into
+#: the holder) and moved to where the profiles along it step by at least
+#: MIN_CHANGE, up to REPLACE_HW half-widths away.
+REPLACE_HW = 6.0
+#: ... where it is at least MIN_SHIFT_PX away (the search along a curve already
+#: on the axis finds the same end to a few hundredths, which would only jitter
+#: it). Up to STRAIGHT_HW half-widths, every frame's cut curve is then carried
+#: straight on or back along the axis, where a bent frame's tube bends by
+#: under a tenth of a pixel (a holder's end 2-4 px off: the bases measured
+#: 0.2-0.5 px from the truth, against 0.5-1.8 px cut anew); farther, where
+#: its tube may bend by pixels, each frame is cut anew where its curve
+#: crosses the end face (the bases 18 -> 0.6 px off on an independent
+#: renderer's dark-field scene).
+MIN_SHIFT_PX = 0.5
+STRAIGHT_HW = 1.0
 #: Status of a frame whose centreline does not pass where the holder ends:
 #: further than this many half-widths (and 2 px) from where the first frame's
 #: does.
@@ -216,10 +239,15 @@ OFF_LENGTH = "lost: the tube beyond the holder far from its length on the first 
 
 def _first_and_bent(results: list[FrameTrack]) -> tuple[Curve | None, list[FrameTrack]]:
     """The first ok frame's curve, and the later ok frames bent at least
-    :data:`MIN_BEND_DEG`."""
+    :data:`MIN_BEND_DEG` away from it."""
     ok = [r for r in results if r.ok]
-    bent = [r for r in ok[1:] if abs(np.degrees(r.bend_angle_rad)) >= MIN_BEND_DEG]
+    bent = [r for r in ok[1:] if _bent_from(r, ok[0]) >= np.radians(MIN_BEND_DEG)]
     return (ok[0].curve if ok else None), bent
+
+
+def _bent_from(r: FrameTrack, first: FrameTrack) -> float:
+    """How far frame ``r`` has bent away from the ``first`` frame's bend, rad."""
+    return abs(r.bend_angle_rad - first.bend_angle_rad)
 
 
 def static_stretch(results: list[FrameTrack], half_width: float, at_least: float = 0.0
@@ -346,7 +374,8 @@ def motion_hinge(results: list[FrameTrack], half_width: float, upto: float
     # video's frames widen at random: a dim fluorescent tube's held one 91 px
     # inside its holder, each frame's within 81.5-94 px, the halves' medians
     # 1 px apart, against a stiff first section's hinge moving 12 px)
-    order = np.argsort(np.abs([r.bend_angle_rad for r in bent]))
+    first_ok = next(r for r in results if r.ok)
+    order = np.argsort([_bent_from(r, first_ok) for r in bent])
     half = len(bent) // 2
     spread = abs(float(np.median(each[order[-half:]]) - np.median(each[order[:half]])))
     return float(grid[best]), float((total[0] - total[best]) / var), spread
@@ -464,8 +493,8 @@ def wide_holder_end(image: np.ndarray, curve: Curve, half_width: float,
     return s_end, float(np.nanmedian(span[:j][wide]) / width)
 
 
-def profile_change(image: np.ndarray, curve: Curve, half_width: float, upto: float
-                   ) -> tuple[float, float]:
+def profile_change(image: np.ndarray, curve: Curve, half_width: float, upto: float, *,
+                   tube_checks: bool = True) -> tuple[float, float]:
     """Where along ``curve``'s first ``upto`` px the holder ends and the tube's
     own profile begins, and by how much the profiles change there.
 
@@ -493,6 +522,10 @@ def profile_change(image: np.ndarray, curve: Curve, half_width: float, upto: flo
         change is at least :data:`STEP_WIDTHS` tube widths from the base (the
         change itself, the blurred edge before it, up to two half-widths
         nearer: :func:`_end_edge`).
+    tube_checks : bool
+        Whether the profiles past the change must be the far tube's and the
+        change no steady trend's (see ``change`` below); without, a holder
+        already told is only placed.
 
     Returns
     -------
@@ -540,23 +573,32 @@ def profile_change(image: np.ndarray, curve: Curve, half_width: float, upto: flo
     at = int(k[np.argmax(ratio)])
     if ratio.max() <= 0.0:
         return float(s[at]), 0.0    # nothing there differs from the tube
-    if np.median(dev[at:]) > TUBE_MATCH_CHI2:
-        # past it the profiles are not the far tube's: a section whose walls
-        # differ (a stiff first section that stood still), not a holder's end
-        return float(s[at]), 0.0
-    # a shading along the tube changes its profiles steadily too: a straight
-    # trend along the whole stretch then fits as well as one along the holder
-    # with the tube's own profile past it
-    design = np.c_[np.ones(n), s[:n]]
-    trend, *_ = np.linalg.lstsq(design, prof[:n], rcond=None)
-    sse_trend = float(((prof[:n] - design @ trend) ** 2).sum())
-    held, *_ = np.linalg.lstsq(design[:at], prof[:at], rcond=None)
-    sse = float(((prof[:at] - design[:at] @ held) ** 2).sum()
-                + ((prof[at:n] - prof[at:n].mean(axis=0)) ** 2).sum())
-    if sse_trend < STEP_OVER_TREND * sse:
-        return float(s[at]), 0.0
+    if tube_checks:
+        if np.median(dev[at:]) > TUBE_MATCH_CHI2:
+            # past it the profiles are not the far tube's: a section whose walls
+            # differ (a stiff first section that stood still), not a holder's end
+            return float(s[at]), 0.0
+        # a shading along the tube changes its profiles steadily too: a straight
+        # trend along the whole stretch then fits as well as one along the
+        # holder with the tube's own profile past it
+        if _a_trend(s[:n], prof[:n], at):
+            return float(s[at]), 0.0
     last = prof[max(at - k_min, 0):at].mean(axis=0)
     return _end_edge(s, dev, at, half_width), float(np.mean((last - tube) ** 2) / scatter)
+
+
+def _a_trend(s: np.ndarray, prof: np.ndarray, at: int) -> bool:
+    """Whether a straight trend along the whole stretch fits the profiles
+    ``prof`` (one per arc length ``s``) nearly as well as one along the holder
+    (to profile ``at``) with the tube's one profile past it
+    (:data:`STEP_OVER_TREND`): a shading, not a holder's end."""
+    design = np.c_[np.ones(s.size), s]
+    trend, *_ = np.linalg.lstsq(design, prof, rcond=None)
+    sse_trend = float(((prof - design @ trend) ** 2).sum())
+    held, *_ = np.linalg.lstsq(design[:at], prof[:at], rcond=None)
+    sse = float(((prof[:at] - design[:at] @ held) ** 2).sum()
+                + ((prof[at:] - prof[at:].mean(axis=0)) ** 2).sum())
+    return sse_trend < STEP_OVER_TREND * sse
 
 
 def _end_edge(s: np.ndarray, dev: np.ndarray, at: int, half_width: float) -> float:
@@ -907,14 +949,18 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
                 "scatter" if change >= MIN_CHANGE else None)
         if told is None:
             profiled = False
+            # (a hinge at the end of the stretch searched may lie beyond it: a
+            # thin pipette 53 px long whose fit stood still for only 21 px
+            # had its hinge put at the search's end, 28 px)
             s, gain, spread = motion_hinge(results, half_width, still + 2 * half_width)
-            if gain >= MIN_HINGE_GAIN and spread <= max(HINGE_SPREAD_PX, 0.25 * half_width):
+            if (gain >= MIN_HINGE_GAIN and spread <= max(HINGE_SPREAD_PX, 0.25 * half_width)
+                    and s <= still + half_width):
                 told = (f"the tracked structure's first {s * px:.0f} px stood still on every "
                         "frame while the rest bent, and the bent frames leave its line there "
                         "as a tube clamped there would")
     ok = [r for r in results if r.ok]
     moved = (len(ok) >= MIN_HINGE_FRAMES
-             and max(abs(r.bend_angle_rad) for r in ok) >= np.radians(PROFILE_MIN_BEND_DEG))
+             and max(_bent_from(r, ok[0]) for r in ok) >= np.radians(PROFILE_MIN_BEND_DEG))
     if told is not None and not profiled and moved:
         # the bent frames' hinge tells the holder; where the profiles along it
         # step within a half-width of there, they place its end (to a pixel:
@@ -956,14 +1002,24 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
     if (told is None or (s < STEP_WIDTHS * 2 * half_width and not profiled)
             or first.length - s < MIN_TUBE_SHARE * first.length):
         return [r.moved(r.stage_shift - origin) for r in results], None
+    axis = holder_axis(first, s, half_width, first_frame())
+    hook = _hook(first, s, axis, half_width)
+    cut = _cut(first, s, axis, hook)
+    shift = _end_on_axis(first_frame(), cut, s, half_width)
+    if shift:
+        told += f"; its end moved {shift * px:+.1f} px along the tube's own axis"
+    if abs(shift) > STRAIGHT_HW * half_width:
+        # every frame is cut where its curve crosses the end face so found (the
+        # frames' curves run alike through the holder, which stands still)
+        s = _crossing(first, cut.base + shift * np.exp(1j * axis), axis)
+        hook = _hook(first, s, axis, half_width)
+        shift = 0.0
     arc, z, _, _ = _sampled(first, 0.25)
     end = complex(np.interp(s, arc, z.real), np.interp(s, arc, z.imag))
-    axis = holder_axis(first, s, half_width, first_frame())
     # (within the tube's half-width: a fit through a holder the camera shakes,
     # its base held at the border, passes its end up to 4.7 px aside)
     tol = max(2.0, OFF_HOLDER_HW * half_width)
     tube = first.length - s
-    hook = _hook(first, s, axis, half_width)
     out = []
     for r in results:
         if not r.ok:
@@ -983,8 +1039,8 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
         # (the fit shares the curve's base: cut at the same arc length; the
         # last section's record describes the uncut spline, and goes)
         out.append(replace(
-            r, curve=_cut(r.curve, at, axis, hook) if at >= 1.0 else r.curve,
-            fit=(_cut(r.fit, min(at, 0.5 * r.fit.length), axis, hook)
+            r, curve=_cut(r.curve, at, axis, hook, shift) if at >= 1.0 else r.curve,
+            fit=(_cut(r.fit, min(at, 0.5 * r.fit.length), axis, hook, shift)
                  if r.fit is not None and at >= 1.0 else r.fit),
             last_section=None).moved(r.stage_shift - origin))
     return out, (f"{told}: a holder (pipette) taken for the tube, cut off every frame (its "
@@ -1002,9 +1058,38 @@ def _hook(first: Curve, s: float, axis: float, half_width: float) -> float:
     return reach if abs(aside) >= UNHOOK_MIN_PX else 0.0
 
 
-def _cut(curve: Curve, s: float, axis: float, hook: float) -> Curve:
+def _cut(curve: Curve, s: float, axis: float, hook: float, shift: float = 0.0) -> Curve:
     """``curve`` cut ``s`` px from its base, its base tangent ``axis`` (rad),
-    and its first ``hook`` px past the cut unhooked (:func:`unhooked`; none
-    for 0)."""
+    its first ``hook`` px past the cut unhooked (:func:`unhooked`; none for
+    0), and then its base moved ``shift`` px along the axis (cut further, or
+    for ``shift < 0`` carried straight back)."""
     cut = cut_base(curve, s, axis)
-    return unhooked(cut, min(hook, UNHOOK_SHARE * cut.length)) if hook > 0 else cut
+    cut = unhooked(cut, min(hook, UNHOOK_SHARE * cut.length)) if hook > 0 else cut
+    return cut_base(cut, shift, axis) if shift else cut
+
+
+def _crossing(curve: Curve, face: complex, axis: float) -> float:
+    """Arc length (px) at which ``curve`` first crosses the line through
+    ``face`` square to ``axis`` (rad), going forwards along it; its length
+    where it never does."""
+    arc, z, _, _ = _sampled(curve, 0.25)
+    along = ((z - face) * np.exp(-1j * axis)).real
+    k = np.flatnonzero((along[:-1] < 0) & (along[1:] >= 0))
+    if not k.size:
+        return float(curve.length)
+    k = int(k[0])
+    return float(arc[k] + (arc[k + 1] - arc[k]) * -along[k] / (along[k + 1] - along[k]))
+
+
+def _end_on_axis(image: np.ndarray, cut: Curve, back: float, half_width: float) -> float:
+    """How far along the tube's axis the holder's end lies past the base of
+    ``cut`` (the first frame's curve, cut and unhooked: its base on the tube's
+    axis), px; 0 where the profiles along the axis, ``back`` px into the
+    holder, do not step by :data:`MIN_CHANGE` within :data:`REPLACE_HW`
+    half-widths of it (see :data:`REPLACE_HW`)."""
+    probe = cut_base(cut, -back, cut.base_angle)
+    at, change = profile_change(image, probe, half_width,
+                                back + HOLDER_REACH_HW * half_width, tube_checks=False)
+    shift = at - back
+    return (shift if change >= MIN_CHANGE and MIN_SHIFT_PX <= abs(shift) <= REPLACE_HW * half_width
+            else 0.0)

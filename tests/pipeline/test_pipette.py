@@ -19,10 +19,12 @@ TURN = -3.5
 
 
 def _video(tmp_path, holder: float | None, n: int = 8, base=BASE, turn=TURN, hw=HW,
-           holder_look: float = 0.5, capillary: tuple | None = None, size=(480, 640)):
+           holder_look: float = 0.5, capillary: tuple | None = None, size=(480, 640),
+           holder_offset: float = 0.0):
     """A dark tube bending clockwise from straight to 200 deg, held (``holder``:
     that many of its half-widths wide, ``holder_look`` times as dark, running to
-    the border) or starting at the border itself, or held by a tapered glass
+    the border, its axis ``holder_offset`` of its half-widths to the left of
+    the tube's) or starting at the border itself, or held by a tapered glass
     capillary (``capillary``: its radius at the tube and far from it, and the
     taper's length, in half-widths, and its walls' depth; see
     :func:`_capillary`); frames (``size``: rows, cols) as PNGs, and the true
@@ -34,7 +36,7 @@ def _video(tmp_path, holder: float | None, n: int = 8, base=BASE, turn=TURN, hw=
         kappa = turn * k / (n - 1) / LENGTH
         img = tube_image(size, base, ANGLE, LENGTH, kappa + 1e-12, hw, noise=0.01,
                          seed=k, pipette_half_width=None if holder is None else holder * hw,
-                         pipette_contrast=holder_look)
+                         pipette_contrast=holder_look, pipette_offset=holder_offset * hw)
         if capillary is not None:
             r_tip, r_far, taper, line = capillary
             img = _capillary(img, r_tip * hw, r_far * hw, taper * hw, base=base, line=line)
@@ -91,6 +93,21 @@ def test_a_holder_far_longer_than_the_tube_is_cut_off(tmp_path):
     folder, bends = _video(tmp_path, holder=1.0, base=base, size=(480, 1600))
     run = _cut_and_measured(folder, tmp_path / "out", bends, base=base)
     assert any("holder (pipette) taken for the tube" in n for n in run["left_out_and_why"])
+
+
+@pytest.mark.parametrize("holder, offset", [(1.6, 0.5), (1.5, 0.3)])
+def test_a_holder_off_the_tube_s_axis_is_cut_at_its_end_face(tmp_path, holder, offset):
+    # a holder 1.5-1.6x the tube's width, its axis 2.4-4 px beside the tube's
+    # (a tube lying to one side of its holder's bore): the fit through both
+    # hooks over from the holder's axis to the tube's past the end face, and
+    # the profiles across it become the tube's only past the face, where the
+    # base had been put: 19 px past it (length 6 % over; the frames cut anew
+    # where they cross the face), or 1.3 px before it and 1.7 px aside (each
+    # frame's tube carried on along the axis); looked for again along the
+    # tube's own axis, the face is found
+    folder, bends = _video(tmp_path, holder=holder, holder_look=1.0, holder_offset=offset)
+    run = _cut_and_measured(folder, tmp_path / "out", bends)
+    assert any("along the tube's own axis" in n for n in run["left_out_and_why"])
 
 
 def test_a_holder_of_the_tube_s_own_look_is_cut_where_the_bending_starts(tmp_path,
