@@ -360,7 +360,20 @@ def _register(image, gx, gy, ref, xs, ys, d0):
         below :data:`APERTURE` of the gradient energy, or measured no better
         than :data:`MAX_SE_PX`, keep ``d0``'s.
     """
-    d0 = np.asarray(d0, float)
+    if not np.ptp(ref) > 0:
+        return None
+    try:
+        return _registered(image, gx, gy, ref, xs, ys, np.asarray(d0, float))
+    except np.linalg.LinAlgError:
+        # (a region whose first-frame values do not tell the gain from the
+        # offset, or a frame that does not tell a shift: a dim fluorescent
+        # holder's glow in a 12-bit camera's few counts, all alike)
+        return None
+
+
+def _registered(image, gx, gy, ref, xs, ys, d0):
+    """:func:`_register`'s fit; LinAlgError where its normal equations are
+    singular."""
     d = d0.copy()
     ref = ref.astype(np.float32)
     one = np.ones_like(ref)

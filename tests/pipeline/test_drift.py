@@ -68,6 +68,30 @@ def test_a_direction_the_region_does_not_tell_stays_put():
     assert abs(got.real) < 0.15
 
 
+def test_a_region_that_cannot_tell_gain_from_offset_is_not_measured():
+    # a first frame's region all at one level (a clipped glow, a camera's
+    # few counts alike): its values cannot tell the light's gain from its
+    # offset, and the fit's normal equations are singular; the frame is not
+    # measured, and the run goes on (an independent renderer's dim
+    # fluorescent holder stopped the whole run with "Singular matrix")
+    rows, cols = np.mgrid[0:40, 0:40].astype(np.float32)
+
+    def blob(dx, dy):
+        return (0.5 + 0.3 * np.exp(-((cols - 20 - dx) ** 2 + (rows - 20 - dy) ** 2) / 50.0)
+                ).astype(np.float32)
+
+    image = blob(0.0, 0.0)
+    gy, gx = np.gradient(image)
+    xs, ys = cols[5:35, 5:35].ravel(), rows[5:35, 5:35].ravel()
+    assert drift._register(image, gx, gy, np.full(xs.size, 0.5), xs, ys, (0.0, 0.0)) is None
+    # (a region whose values vary is registered as ever: the frame moved by
+    # 0.3 px right and 0.2 px down from the first)
+    first = blob(-0.3, -0.2)[5:35, 5:35].ravel()
+    got = drift._register(image, gx, gy, first, xs, ys, (0.0, 0.0))
+    assert got is not None
+    np.testing.assert_allclose(got[0], [0.3, 0.2], atol=0.02)
+
+
 def test_a_base_at_the_border_is_not_followed():
     curve = replace(_curve(), base=complex(SHAPE[1] - 3, BASE.imag))
     assert drift.StageDrift.start(_frame(0j, 0.0), curve, HW) is None
