@@ -1008,12 +1008,13 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
     shift = _end_on_axis(first_frame(), cut, s, half_width)
     if shift:
         told += f"; its end moved {shift * px:+.1f} px along the tube's own axis"
-    if abs(shift) > STRAIGHT_HW * half_width:
+    face = (_crossing(first, cut.base + shift * np.exp(1j * axis), axis)
+            if abs(shift) > STRAIGHT_HW * half_width else None)
+    if face is not None:
         # every frame is cut where its curve crosses the end face so found (the
         # frames' curves run alike through the holder, which stands still)
-        s = _crossing(first, cut.base + shift * np.exp(1j * axis), axis)
+        s, shift = face, 0.0
         hook = _hook(first, s, axis, half_width)
-        shift = 0.0
     arc, z, _, _ = _sampled(first, 0.25)
     end = complex(np.interp(s, arc, z.real), np.interp(s, arc, z.imag))
     # (within the tube's half-width: a fit through a holder the camera shakes,
@@ -1068,15 +1069,16 @@ def _cut(curve: Curve, s: float, axis: float, hook: float, shift: float = 0.0) -
     return cut_base(cut, shift, axis) if shift else cut
 
 
-def _crossing(curve: Curve, face: complex, axis: float) -> float:
+def _crossing(curve: Curve, face: complex, axis: float) -> float | None:
     """Arc length (px) at which ``curve`` first crosses the line through
-    ``face`` square to ``axis`` (rad), going forwards along it; its length
-    where it never does."""
+    ``face`` square to ``axis`` (rad), going forwards along it, leaving the
+    tube its share (:data:`MIN_TUBE_SHARE`) past it; None where it does not."""
     arc, z, _, _ = _sampled(curve, 0.25)
     along = ((z - face) * np.exp(-1j * axis)).real
-    k = np.flatnonzero((along[:-1] < 0) & (along[1:] >= 0))
+    k = np.flatnonzero((along[:-1] < 0) & (along[1:] >= 0)
+                       & (arc[1:] <= (1.0 - MIN_TUBE_SHARE) * curve.length))
     if not k.size:
-        return float(curve.length)
+        return None
     k = int(k[0])
     return float(arc[k] + (arc[k + 1] - arc[k]) * -along[k] / (along[k + 1] - along[k]))
 
