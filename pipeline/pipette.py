@@ -494,7 +494,8 @@ def wide_holder_end(image: np.ndarray, curve: Curve, half_width: float,
 
 
 def profile_change(image: np.ndarray, curve: Curve, half_width: float, upto: float, *,
-                   tube_checks: bool = True) -> tuple[float, float]:
+                   tube_checks: bool = True, trend_check: bool | None = None
+                   ) -> tuple[float, float]:
     """Where along ``curve``'s first ``upto`` px the holder ends and the tube's
     own profile begins, and by how much the profiles change there.
 
@@ -526,6 +527,9 @@ def profile_change(image: np.ndarray, curve: Curve, half_width: float, upto: flo
         Whether the profiles past the change must be the far tube's and the
         change no steady trend's (see ``change`` below); without, a holder
         already told is only placed.
+    trend_check : bool, optional
+        Whether the change must be no steady trend's (default: as
+        ``tube_checks``).
 
     Returns
     -------
@@ -573,11 +577,11 @@ def profile_change(image: np.ndarray, curve: Curve, half_width: float, upto: flo
     at = int(k[np.argmax(ratio)])
     if ratio.max() <= 0.0:
         return float(s[at]), 0.0    # nothing there differs from the tube
-    if tube_checks:
-        if np.median(dev[at:]) > TUBE_MATCH_CHI2:
-            # past it the profiles are not the far tube's: a section whose walls
-            # differ (a stiff first section that stood still), not a holder's end
-            return float(s[at]), 0.0
+    if tube_checks and np.median(dev[at:]) > TUBE_MATCH_CHI2:
+        # past it the profiles are not the far tube's: a section whose walls
+        # differ (a stiff first section that stood still), not a holder's end
+        return float(s[at]), 0.0
+    if tube_checks if trend_check is None else trend_check:
         # a shading along the tube changes its profiles steadily too: a straight
         # trend along the whole stretch then fits as well as one along the
         # holder with the tube's own profile past it
@@ -1091,7 +1095,8 @@ def _end_on_axis(image: np.ndarray, cut: Curve, back: float, half_width: float) 
     half-widths of it (see :data:`REPLACE_HW`)."""
     probe = cut_base(cut, -back, cut.base_angle)
     at, change = profile_change(image, probe, half_width,
-                                back + HOLDER_REACH_HW * half_width, tube_checks=False)
+                                back + HOLDER_REACH_HW * half_width, tube_checks=False,
+                                trend_check=True)
     shift = at - back
     return (shift if change >= MIN_CHANGE and MIN_SHIFT_PX <= abs(shift) <= REPLACE_HW * half_width
             else 0.0)

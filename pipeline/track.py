@@ -54,6 +54,7 @@ from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+from scipy import ndimage as ndi
 
 from .centreline import (
     Curve,
@@ -271,6 +272,15 @@ LENGTH_JUMP = 0.01
 #: 0.8-1.4 deg (with RUN_ON_ROUNDS); 136 scenes of the repo's renderer: one moved
 #: by > 0.02 deg (v29, 0.88 -> 1.00 deg, failing before and after).
 WIDTH_GUESSES = (1.4, 1.0, 0.6, 0.36)
+#: ... and these, far narrower, which win only where their edge pairs score
+#: over 1/:data:`WEAK_STRETCH` times the best of those (and give the width of
+#: any stretch where they are that much stronger: :func:`_strongest_widths`).
+#: A fluorescent tube's glow spreads its mask to 5x its width (an independent
+#: renderer's 19 px tube: a 100 px mask; pairs 0.27 strong at 0.2 of it,
+#: 0.002 at the others), and every frame failed its checks; found now (median
+#: 0.45 deg). Taken on the score alone, they found a dyed lumen in a colour
+#: frame's luminance (0.056 against the outer pair's 0.050).
+FAR_NARROWER = (0.2,)
 #: A pair of edges of the other polarity around the one found, at these
 #: multiples of its width, is the tube (:func:`_enclosing`) where it is at
 #: least ENCLOSING_MIN_RATIO times as wide, found on ENCLOSING_VALID of as many
@@ -576,6 +586,71 @@ def _learn_widths(refined: Refined, n_bins: int, fallback: float) -> np.ndarray:
     return np.interp(centres, centres[good], out[good])
 
 
+#: A stretch of the first fit (one of its nine width bins) where it finds
+#: next to nothing (its edge pairs there under WEAK_STRETCH of its own
+#: typical strength) takes the width of another width guess whose pairs
+#: there are over 1/WEAK_STRETCH times as strong, as strong as the tube's
+#: (half the fit's typical strength at least) and under NARROWER_STRETCH of
+#: the width the fit learnt there; and only where such stretches run over
+#: MIN_STRETCH_BINS bins together. A tube on a tapered holder many times its
+#: width (an independent renderer's 4.8 px tube at the end of a 700 px
+#: pipette 22 px wide at the border) has no one width, and the guess that
+#: fits the holder found only noise along the tube (pairs 0.004 strong
+#: against the tube's 0.18). A single bin is a crossing or a blemish: a
+#: tube over-curled on the first frame, where a narrow pair at its crossing
+#: took one bin to a quarter of the tube's width; pairs wider than the fit's
+#: beside the tube are a neighbouring coil's. (A rim of a hollow tube is never
+#: 4x stronger than its outer pair: both are as strong as their weaker edge,
+#: and the rim shares an outer one.)
+WEAK_STRETCH = 0.25
+NARROWER_STRETCH = 0.75
+MIN_STRETCH_BINS = 2
+
+
+def _bin_strengths(image, r: Refined, look: TubeLook, n_bins: int):
+    """Per width bin of ``r``: its edge pairs' median strength (0 where none
+    is found) and median half-width (NaN where fewer than half are found),
+    as ``look`` finds them across ``r``'s curve."""
+    e = edges_at(image, r.curve, look, r.u, width_tol=0.4)
+    which = np.clip((r.u * n_bins).astype(int), 0, n_bins - 1)
+    strength = np.where(e.valid, e.strength, 0.0)
+    med = np.zeros(n_bins)
+    half = np.full(n_bins, np.nan)
+    for b in range(n_bins):
+        inside = which == b
+        if inside.sum() >= 2:
+            med[b] = np.median(strength[inside])
+            if e.valid[inside].mean() >= 0.5:
+                half[b] = 0.5 * np.median(e.width[inside & e.valid])
+    return med, half
+
+
+def _strongest_widths(image, r: Refined, look: TubeLook, widths: np.ndarray,
+                      others) -> np.ndarray:
+    """``widths`` (the first fit ``r``'s, learnt with ``look``), with the
+    stretches where another of the first fits ``others`` ((Refined,
+    TubeLook) pairs) of the same polarity finds the tube and ``r`` does not
+    (:data:`WEAK_STRETCH`) at that fit's width."""
+    n_bins = widths.size
+    own, _ = _bin_strengths(image, r, look, n_bins)
+    out = widths.copy()
+    best = own.copy()
+    for fit, their_look in others:
+        if their_look.polarity != look.polarity:
+            continue
+        strength, half = _bin_strengths(image, fit, their_look, n_bins)
+        take = ((strength * WEAK_STRETCH > own) & (strength > best) & np.isfinite(half)
+                & (own < WEAK_STRETCH * r.strength) & (strength >= 0.5 * r.strength)
+                & (half < NARROWER_STRETCH * widths))
+        out[take], best[take] = half[take], strength[take]
+    taken = out != widths
+    runs, n_runs = ndi.label(taken)
+    for k in range(1, n_runs + 1):
+        if np.sum(runs == k) < MIN_STRETCH_BINS:
+            out[runs == k] = widths[runs == k]
+    return out
+
+
 def _enclosing(image, curve, r, polarity, hw, tol, others=()):
     """The edge pair ``r`` found, or a wider pair of the other polarity around
     it whose edges are about as strong: a transparent tube in transmitted
@@ -661,15 +736,20 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
     anti = antisymmetry(image, curve, hw)
     polarities = ((0,) if anti >= RELIEF_SURE else (-1, 1, 0) if anti >= RELIEF_MAYBE
                   else (-1, 1))
-    cands = []
+    cands, narrow = [], []
+    guesses = {}
     for polarity in polarities:
-        for scale in WIDTH_GUESSES:
+        for scale in (*WIDTH_GUESSES, *FAR_NARROWER):
             look = TubeLook(polarity, np.full(9, hw * scale), 0.0)
             r = refine(image, curve, look, window=0.6 * hw, iterations=3, width_tol=0.4,
                        fit_length=False, tol_px=tol, tip_stiffness=0.0)
-            cands.append((r.valid_fraction * r.strength, polarity, r))
+            (cands if scale in WIDTH_GUESSES else narrow).append(
+                (r.valid_fraction * r.strength, polarity, r))
+            guesses[id(r)] = look
+    first_fits = cands + narrow
+    usual = max(c[0] for c in cands)
+    cands += [c for c in narrow if c[0] * WEAK_STRETCH > usual]
     polarity = max(cands, key=lambda c: c[0])[1]
-    first_fits = cands
     if len(polarities) == 3:
         # not told by the skeleton's curve, which may sit off the tube's middle:
         # a relief is odd about the middle its own edges find (measured, where the
@@ -693,8 +773,13 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
                                  others=[c[2] for c in first_fits if c[1] == -polarity])
     if r.valid_fraction < 0.3:
         return None
+    widths = _learn_widths(r, 9, hw)
+    if polarity != 0 and id(r) in guesses:
+        widths = _strongest_widths(image, r, guesses[id(r)], widths,
+                                   [(c[2], guesses[id(c[2])]) for c in first_fits
+                                    if c[2] is not r])
     # (the end's sideways step, if any, is told by the frames: see _EndStepVotes)
-    look = TubeLook(polarity, _learn_widths(r, 9, hw), r.strength, end_step_px=None)
+    look = TubeLook(polarity, widths, r.strength, end_step_px=None)
     look = edge_scale(image, r.curve, look)
     # the base tangent is measured once, here, with a strong roughness penalty so
     # that φ(0) follows the whole tube rather than the few profiles by the base

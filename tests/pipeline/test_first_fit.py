@@ -8,11 +8,14 @@ what the start learns: the tube's width, its length, where it lies.
 import cv2
 import numpy as np
 import pytest
+from scipy import ndimage as ndi
 
 from models import get_sample
 from pipeline import segment, track
-from pipeline.centreline import fit_to_polyline, from_image, resample
+from pipeline.centreline import Curve, fit_to_polyline, from_image, resample
+from pipeline.refine import TubeLook, refine
 from pipeline.render import Renderer, default_scene, truth_tables
+from tests.pipeline.synthetic import tube_image
 
 
 def _first_frame(sample, look, **changes):
@@ -43,6 +46,92 @@ def test_a_mask_narrower_than_the_tube_still_gives_the_tube_s_width(fraction):
     _, look, _ = track.initialise(image)
     _, narrow, _ = track.initialise(image, detection=_given(z, fraction * look.mean_half_width))
     assert narrow.mean_half_width == pytest.approx(look.mean_half_width, rel=0.05)
+
+
+@pytest.mark.parametrize("factor", [2.5, 6.0, 8.0])
+def test_a_mask_far_wider_than_the_tube_still_gives_the_tube_s_width(factor):
+    """A fluorescent tube's glow (or a tiny tube's blur at the working scale)
+    spreads its mask to 2.6-5x the tube's width (an independent renderer's
+    19 px tube in a haze: a 100 px mask). Trying down to 0.36 of the mask's
+    width, no edge pair within 40 % of the tube's was sought, and every frame
+    failed its checks. 0.2 of it is now tried too."""
+    image, z = _first_frame(3, "fluorescent")
+    _, look, _ = track.initialise(image)
+    r, wide, _ = track.initialise(image, detection=_given(z, factor * look.mean_half_width))
+    assert wide.mean_half_width == pytest.approx(look.mean_half_width, rel=0.05)
+    assert r.curve.length == pytest.approx(float(np.abs(np.diff(z)).sum()), rel=0.01)
+
+
+def test_a_tube_in_a_glow_is_found_at_its_own_width():
+    """A bright tube whose light spreads into a haze twice its width across
+    (a fluorescent wall's glow): the mask is 5x the tube's width, and the
+    first fit took the haze's skirts for the tube (half-width 12.6 px for 6,
+    the base 6 px off the tube's axis)."""
+    base, hw = complex(0.0, -240.0), 6.0
+    image = tube_image((480, 640), base, 0.0, 380.0, 1 / 900, hw, polarity=1,
+                       background=0.05, contrast=14.0, noise=0.01)
+    glow = ndi.gaussian_filter(image - 0.05, 2.0 * hw)
+    image = np.clip(image + 0.2 * glow / glow.max(), 0.0, 1.0).astype(np.float32)
+    assert segment.detect(image).half_width > 4 * hw
+    r, look, _ = track.initialise(image)
+    assert look.mean_half_width == pytest.approx(hw, rel=0.05)
+    assert abs(r.curve.base - base) <= 1.0
+    assert r.curve.length == pytest.approx(380.0, rel=0.01)
+
+
+def _first_fits(image, curve, guesses, window):
+    """The start's first fits of ``curve`` at each guessed half-width, with their looks."""
+    fits = []
+    for hw in guesses:
+        look = TubeLook(-1, np.full(9, hw), 0.0)
+        fits.append((refine(image, curve, look, window=window, iterations=3,
+                                  width_tol=0.4, fit_length=False, tol_px=0.02,
+                                  tip_stiffness=0.0), look))
+    return fits
+
+
+def test_a_tube_on_a_holder_many_times_its_width_takes_its_own_width_there():
+    """A 5 px tube at the end of a 560 px holder tapering from 4.5x its width
+    at the border to 1.6x: the first fit at the holder's width finds only
+    noise along the tube (half-widths 6.9-7.4 px learnt for 2.5), and the
+    tube's edges were never sought. Each stretch now takes the width of the
+    guess whose edge pairs there are over 4x as strong."""
+    from scipy.special import erf
+
+    hw, length, holder = 2.5, 160.0, 560.0
+    base = complex(holder, -240.0)
+    image = tube_image((480, 800), base, 0.0, length, 1e-12, hw, noise=0.01)
+    rr, cc = np.mgrid[0:480, 0:800]
+    rel = (cc - 1j * rr) - base
+    radius = hw * (1.6 + 2.9 * np.clip(-rel.real, 0, None) / holder)
+    glass = 0.25 * (1 + erf(-rel.real / 0.7)) * (1 + erf((radius - np.abs(rel.imag)) / 0.7))
+    image = (image * (1 - 0.175 * glass)).astype(np.float32)
+    curve = Curve(complex(0, -240), 0.0, holder + length, np.zeros(12))
+    (wide, look), *others = _first_fits(image, curve, (8.0, 4.5, 2.5), 4.8)
+    learnt = track._learn_widths(wide, 9, 8.0)
+    assert np.all(learnt[-2:] > 2 * hw)
+    widths = track._strongest_widths(image, wide, look, learnt, others)
+    assert widths[-2:] == pytest.approx([hw, hw], rel=0.05)
+    np.testing.assert_array_equal(widths[:6], learnt[:6])
+
+
+def test_a_hollow_tube_keeps_its_outer_width_in_every_stretch():
+    """Narrower guesses on a tube with dark walls 2.5 px thick and a clear
+    lumen (one wall is a dark band too) never displace the outer pair."""
+    from scipy.special import erf
+
+    hw, wall = 10.0, 2.5
+    rr, cc = np.mgrid[0:480, 0:640]
+    d = np.abs(rr - 240.0)
+    walls = 0.25 * (1 + erf((hw - d) / 0.7)) * (1 + erf((d - (hw - wall)) / 0.7)) * (cc < 420)
+    image = (0.8 * (1 - 0.35 * walls)
+             + np.random.default_rng(0).normal(0, 0.01, rr.shape)).astype(np.float32)
+    curve = Curve(complex(0, -240), 0.0, 420.0, np.zeros(12))
+    (outer, look), *others = _first_fits(image, curve, (10.0, 6.0, 3.6, 2.0), 6.0)
+    learnt = track._learn_widths(outer, 9, hw)
+    assert learnt == pytest.approx(np.full(9, hw), rel=0.03)
+    np.testing.assert_array_equal(track._strongest_widths(image, outer, look, learnt, others),
+                                  learnt)
 
 
 @pytest.mark.parametrize("fraction", [0.25, 0.4])
