@@ -494,7 +494,7 @@ def wide_holder_end(image: np.ndarray, curve: Curve, half_width: float,
 
 
 def profile_change(image: np.ndarray, curve: Curve, half_width: float, upto: float, *,
-                   tube_checks: bool = True, trend_check: bool | None = None
+                   match_tube: bool = True, no_trend: bool = True
                    ) -> tuple[float, float]:
     """Where along ``curve``'s first ``upto`` px the holder ends and the tube's
     own profile begins, and by how much the profiles change there.
@@ -523,13 +523,11 @@ def profile_change(image: np.ndarray, curve: Curve, half_width: float, upto: flo
         change is at least :data:`STEP_WIDTHS` tube widths from the base (the
         change itself, the blurred edge before it, up to two half-widths
         nearer: :func:`_end_edge`).
-    tube_checks : bool
-        Whether the profiles past the change must be the far tube's and the
-        change no steady trend's (see ``change`` below); without, a holder
-        already told is only placed.
-    trend_check : bool, optional
-        Whether the change must be no steady trend's (default: as
-        ``tube_checks``).
+    match_tube : bool
+        Whether the profiles past the change must be the far tube's (see
+        ``change`` below); without, a holder already told is only placed.
+    no_trend : bool
+        Whether the change must be no steady trend's (see ``change``).
 
     Returns
     -------
@@ -577,11 +575,11 @@ def profile_change(image: np.ndarray, curve: Curve, half_width: float, upto: flo
     at = int(k[np.argmax(ratio)])
     if ratio.max() <= 0.0:
         return float(s[at]), 0.0    # nothing there differs from the tube
-    if tube_checks and np.median(dev[at:]) > TUBE_MATCH_CHI2:
+    if match_tube and np.median(dev[at:]) > TUBE_MATCH_CHI2:
         # past it the profiles are not the far tube's: a section whose walls
         # differ (a stiff first section that stood still), not a holder's end
         return float(s[at]), 0.0
-    if tube_checks if trend_check is None else trend_check:
+    if no_trend:
         # a shading along the tube changes its profiles steadily too: a straight
         # trend along the whole stretch then fits as well as one along the
         # holder with the tube's own profile past it
@@ -1095,8 +1093,7 @@ def _end_on_axis(image: np.ndarray, cut: Curve, back: float, half_width: float) 
     half-widths of it (see :data:`REPLACE_HW`)."""
     probe = cut_base(cut, -back, cut.base_angle)
     at, change = profile_change(image, probe, half_width,
-                                back + HOLDER_REACH_HW * half_width, tube_checks=False,
-                                trend_check=True)
+                                back + HOLDER_REACH_HW * half_width, match_tube=False)
     shift = at - back
     return (shift if change >= MIN_CHANGE and MIN_SHIFT_PX <= abs(shift) <= REPLACE_HW * half_width
             else 0.0)

@@ -736,16 +736,15 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
     anti = antisymmetry(image, curve, hw)
     polarities = ((0,) if anti >= RELIEF_SURE else (-1, 1, 0) if anti >= RELIEF_MAYBE
                   else (-1, 1))
+    # (score, polarity, fit, the look it was fitted with)
     cands, narrow = [], []
-    guesses = {}
     for polarity in polarities:
         for scale in (*WIDTH_GUESSES, *FAR_NARROWER):
             look = TubeLook(polarity, np.full(9, hw * scale), 0.0)
             r = refine(image, curve, look, window=0.6 * hw, iterations=3, width_tol=0.4,
                        fit_length=False, tol_px=tol, tip_stiffness=0.0)
             (cands if scale in WIDTH_GUESSES else narrow).append(
-                (r.valid_fraction * r.strength, polarity, r))
-            guesses[id(r)] = look
+                (r.valid_fraction * r.strength, polarity, r, look))
     first_fits = cands + narrow
     usual = max(c[0] for c in cands)
     cands += [c for c in narrow if c[0] * WEAK_STRETCH > usual]
@@ -767,17 +766,18 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
         # pairs about as strong made 7 of 136 scenes worse and 3 better.)
         best = max(cands, key=lambda c: c[0] * (np.nanmedian(c[2].width)
                                                 if c[2].valid.any() else 0.0))
-    _, polarity, r = best
+    _, polarity, r, _ = best
     if polarity != 0 and r.valid.any():
         r, polarity = _enclosing(image, curve, r, polarity, hw, tol,
                                  others=[c[2] for c in first_fits if c[1] == -polarity])
     if r.valid_fraction < 0.3:
         return None
     widths = _learn_widths(r, 9, hw)
-    if polarity != 0 and id(r) in guesses:
-        widths = _strongest_widths(image, r, guesses[id(r)], widths,
-                                   [(c[2], guesses[id(c[2])]) for c in first_fits
-                                    if c[2] is not r])
+    # (the look of the first fit r still is: _enclosing may have fitted anew)
+    fitted_with = next((c[3] for c in first_fits if c[2] is r), None)
+    if polarity != 0 and fitted_with is not None:
+        widths = _strongest_widths(image, r, fitted_with, widths,
+                                   [(c[2], c[3]) for c in first_fits if c[2] is not r])
     # (the end's sideways step, if any, is told by the frames: see _EndStepVotes)
     look = TubeLook(polarity, widths, r.strength, end_step_px=None)
     look = edge_scale(image, r.curve, look)
