@@ -117,6 +117,14 @@ PIPETTE_WIDTHS = 8.0
 PIPETTE_MIN_PROFILES = 10
 PIPETTE_MAX_SCATTER_PX = 0.3
 PIPETTE_MAX_TURN_DEG = 3.0
+#: Half-widths of a pipette's edge pairs, as fractions of the tube's.
+PIPETTE_RATIOS = (0.35, 0.5, 0.65, 0.8)
+#: ... and, where none of those shows, of a holder wider than the tube (a
+#: clamp's jaws, a capillary the tube is pushed into), whose outer edges give
+#: the axis's direction. On alien5's tube deflating from a 380° curl out of a
+#: clamp 2.5 times its width, where the start's base tangent leaned 1.1° into
+#: the bend: bend-angle error median 1.02 → 0.19°.
+WIDE_HOLDER_RATIOS = (1.5, 2.0, 2.5, 3.0, 4.0)
 #: ... and the axis's direction is known to this standard error, deg.
 PIPETTE_MAX_SE_DEG = 0.1
 #: Extra weight of the roughness penalty over the last :data:`TIP_STIFF_WIDTHS`
@@ -1363,33 +1371,58 @@ def pipette_axis(image: np.ndarray, curve: Curve, look: TubeLook, *,
     bent tube leans 0.6-0.7° into the bend). Profiles across the base axis
     behind the base, over :data:`PIPETTE_WIDTHS` of the tube's width, find the
     pipette's edge pairs (at the narrower widths a pipette has), and a robust
-    line through their midpoints gives the axis. None unless at least
-    :data:`PIPETTE_MIN_PROFILES` agree to :data:`PIPETTE_MAX_SCATTER_PX`
-    (no pipette in view, or something else behind the base) and give its
-    direction to :data:`PIPETTE_MAX_SE_DEG` (a short or faint pipette), or
-    if the axis is more than :data:`PIPETTE_MAX_TURN_DEG` off the curve's
-    base tangent.
+    line through their midpoints gives the axis. Where no such pairs show,
+    the outer edges of a holder wider than the tube (a clamp, or a capillary
+    the tube is pushed into: :data:`WIDE_HOLDER_RATIOS`) give its direction.
+    None unless at least :data:`PIPETTE_MIN_PROFILES` agree to
+    :data:`PIPETTE_MAX_SCATTER_PX` (no holder in view, or something else
+    behind the base) and give its direction to :data:`PIPETTE_MAX_SE_DEG` (a
+    short or faint holder), or if the axis is more than
+    :data:`PIPETTE_MAX_TURN_DEG` off the curve's base tangent.
 
     Returns
     -------
     (direction, base) or None
         The axis's direction, rad (y up), pointing to the tube, and the point
         on it abreast of the curve's base, full-frame px (y up): the tube
-        leaves the pipette on its axis.
+        leaves a pipette on its axis. A wide holder's midline need not be the
+        tube's (a tube off-centre in its clamp): there the base is the curve's.
     """
     hw = float(look.half_width[0])
+    found = _holder_line(image, curve, look, origin, PIPETTE_RATIOS, 0.4 * hw)
+    if found is not None:
+        turn, aside = found
+        return (float(curve.base_angle + turn),
+                complex(curve.base + 1j * np.exp(1j * curve.base_angle) * aside))
+    # (searched wider: the tube may sit anywhere between a wide holder's edges)
+    found = _holder_line(image, curve, look, origin, WIDE_HOLDER_RATIOS,
+                         0.5 * max(WIDE_HOLDER_RATIOS) * hw)
+    if found is not None:
+        return float(curve.base_angle + found[0]), complex(curve.base)
+    return None
+
+
+def _holder_line(image: np.ndarray, curve: Curve, look: TubeLook, origin,
+                 ratios: tuple[float, ...], window: float) -> tuple[float, float] | None:
+    """The line through the midpoints of the holder's edge pairs behind
+    ``curve``'s base (within ``window`` px of its base axis), at the one of
+    the half-widths ``ratios`` (× the tube's) whose pairs are found most
+    often: its turn from the base tangent, rad, and its offset to the left of
+    the base, px; None where it does not stand (see :func:`pipette_axis`)."""
+    hw = float(look.half_width[0])
     axis = np.exp(1j * curve.base_angle)
+    ratios = np.asarray(ratios, dtype=float)
     s = np.arange(0.5 * hw, PIPETTE_WIDTHS * 2 * hw, max(1.0, hw / 6))
     step = 0.25
-    offsets = np.arange(-1.2 * hw, 1.2 * hw + step / 2, step)
+    reach = ratios.max() * hw + window
+    offsets = np.arange(-reach, reach + step / 2, step)
     prof = sample_lines(image, curve.base - _crop_shift(origin) - s * axis,
                         np.full(s.size, 1j * axis), offsets)
     # every width tried in one call (the profiles stacked once per width), and
     # the width whose pairs are found most often kept
-    ratios = np.array([0.35, 0.5, 0.65, 0.8])
     m = s.size
     pairs = edge_pairs(np.tile(prof, (ratios.size, 1)), step, np.repeat(ratios * hw, m),
-                       polarity=look.polarity, window=0.4 * hw, width_tol=0.25,
+                       polarity=look.polarity, window=window, width_tol=0.25,
                        smooth_px=look.smooth_px, min_strength=0.25 * look.strength)
     pick = int(np.argmax(pairs.valid.reshape(ratios.size, m).sum(axis=1)))
     best = Edges(*(getattr(pairs, f)[pick * m:(pick + 1) * m]
@@ -1413,7 +1446,7 @@ def pipette_axis(image: np.ndarray, curve: Curve, look: TubeLook, *,
     turn = -np.arctan(slope)
     if abs(turn) > np.radians(PIPETTE_MAX_TURN_DEG):
         return None
-    return float(curve.base_angle + turn), complex(curve.base + 1j * axis * icpt)
+    return float(turn), float(icpt)
 
 
 def _base_step(image, starts, phi, hw: float, look: TubeLook, step: float):

@@ -335,6 +335,32 @@ def test_the_pipette_s_axis_is_the_base_tangent(polarity):
     assert pipette_axis(bare, fit_to_polyline(z, angle, n_coef=12), look) is None
 
 
+@pytest.mark.parametrize("polarity", [-1, 1])
+def test_a_holder_wider_than_the_tube_gives_the_base_tangent_s_direction(polarity):
+    from dataclasses import replace
+
+    from pipeline.refine import pipette_axis
+
+    # a tube bent from its base, held in a clamp 2.5 times its width and as dark
+    # (or bright) as the tube, both along 0.3 rad; the tube sits 4 px off the
+    # clamp's midline
+    angle, kappa, hw = 0.3, 1 / 250, 9.0
+    base = 300 - 300j
+    z, _ = arc_axis(base, angle, 300.0, kappa)
+    look = TubeLook(polarity, np.full(5, hw), 0.05)
+    for offset in (0.0, 4.0):
+        img = tube_image(SHAPE, base, angle, 300.0, kappa, hw, polarity=polarity,
+                         noise=0.01, pipette_half_width=2.5 * hw, pipette_contrast=1.0,
+                         pipette_offset=offset)
+        for lean in (np.radians(1.5), np.radians(-0.8)):
+            # a base tangent leaning into the bend, as fitted to a bent tube
+            curve = replace(fit_to_polyline(z, angle, n_coef=12), base_angle=angle + lean)
+            direction, on_axis = pipette_axis(img, curve, look)
+            assert abs(np.degrees(direction - angle)) < 0.05
+            # the tube need not sit on the clamp's midline: the base stays
+            assert on_axis == curve.base
+
+
 def test_locate_base_carries_a_curled_tube_back_without_moving_the_rest_of_it():
     """A curve starting 9 px into a tube curled 300 deg: the base is carried
     back along its axis to the pipette, and the curve past it stays where it
