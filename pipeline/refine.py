@@ -1152,8 +1152,9 @@ def relief_shear(theta: np.ndarray, signed: np.ndarray) -> float | None:
         wider than :data:`RELIEF_MAX_SPREAD_DEG` or not the only one (the
         tube's profiles have not yet pointed both ways about the direction
         where it fades), when the best e still gets more than a tenth as
-        many wrong as there are steps, or while neither both ways nor one way
-        and faded are each seen on a tenth of the profiles (at least 4).
+        many wrong as there are steps, while neither both ways nor one way
+        and faded are each seen on a tenth of the profiles (at least 4), or
+        when most of the steps seen lie where the best e says they fade.
     """
     theta = np.asarray(theta, dtype=float)
     signed = np.asarray(signed, dtype=float)
@@ -1180,6 +1181,12 @@ def relief_shear(theta: np.ndarray, signed: np.ndarray) -> float | None:
     if starts.size != 1 or (ends[0] - starts[0]) * 0.5 > RELIEF_MAX_SPREAD_DEG:
         return None  # e not yet pinned down
     centre = grid[0] + np.radians(0.5 * (k + 0.5 * (starts[0] + ends[0] - 1)))
+    if np.median(np.abs(np.cos(theta[seen] - centre))) < RELIEF_MIN_COS:
+        # most steps seen where this e says the tube fades: a tube that has
+        # not turned, a few of whose profiles (a stretch the fit missed, a
+        # few degrees off the rest) step the other way, pins an e just short
+        # of the fading, which its edges do not show
+        return None
     return float(np.angle(np.exp(1j * centre)))
 
 
