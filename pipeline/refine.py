@@ -1154,7 +1154,8 @@ def relief_shear(theta: np.ndarray, signed: np.ndarray) -> float | None:
         where it fades), when the best e still gets more than a tenth as
         many wrong as there are steps, while neither both ways nor one way
         and faded are each seen on a tenth of the profiles (at least 4), or
-        when most of the steps seen lie where the best e says they fade.
+        when most of the steps seen lie where the best e says they are under
+        half as strong as where the tube fades.
     """
     theta = np.asarray(theta, dtype=float)
     signed = np.asarray(signed, dtype=float)
@@ -1181,11 +1182,13 @@ def relief_shear(theta: np.ndarray, signed: np.ndarray) -> float | None:
     if starts.size != 1 or (ends[0] - starts[0]) * 0.5 > RELIEF_MAX_SPREAD_DEG:
         return None  # e not yet pinned down
     centre = grid[0] + np.radians(0.5 * (k + 0.5 * (starts[0] + ends[0] - 1)))
-    if np.median(np.abs(np.cos(theta[seen] - centre))) < RELIEF_MIN_COS:
-        # most steps seen where this e says the tube fades: a tube that has
-        # not turned, a few of whose profiles (a stretch the fit missed, a
-        # few degrees off the rest) step the other way, pins an e just short
-        # of the fading, which its edges do not show
+    if np.median(np.abs(np.cos(theta[seen] - centre))) < 0.5 * RELIEF_MIN_COS:
+        # most steps seen where this e says they are under half as strong as
+        # where the tube fades: a tube that has not turned, a few of whose
+        # profiles (a stretch the fit missed, a few degrees off the rest)
+        # step the other way, pins an e just short of the fading, which its
+        # edges do not show. (At the fading's own |cos|, shears told on
+        # oblique light's strong, saturated edges were refused too.)
         return None
     return float(np.angle(np.exp(1j * centre)))
 
