@@ -104,6 +104,15 @@ NOISE_REF_LINE_PX = 0.05
 #: their full step: the tube fades there, and such profiles neither pull the
 #: fit nor count against it.
 RELIEF_MIN_COS = FADED_COS
+#: ... and a shear is not taken where most of the steps seen lie where it
+#: says they are under this share of their full size (half that of the
+#: fading): a tube that has not turned, a few of whose profiles (a stretch the
+#: fit missed, a few degrees off the rest) step the other way, pins a shear
+#: just short of the fading, which its edges do not show (alien5's DIC tube:
+#: one along the tube, which dropped 94 % of its profiles on the next frames).
+#: At the fading's own share, shears told on oblique light's strong,
+#: saturated edges, which show even there, were refused too.
+RELIEF_TOLD_COS = 0.5 * RELIEF_MIN_COS
 #: The shear of a relief is taken once the tube's edges pin it down to a run
 #: of directions no wider than this, deg.
 RELIEF_MAX_SPREAD_DEG = 30.0
@@ -1213,7 +1222,7 @@ def relief_shear(theta: np.ndarray, signed: np.ndarray) -> float | None:
         many wrong as there are steps, while neither both ways nor one way
         and faded are each seen on a tenth of the profiles (at least 4), or
         when most of the steps seen lie where the best e says they are under
-        half as strong as where the tube fades.
+        :data:`RELIEF_TOLD_COS` of their full size.
     """
     theta = np.asarray(theta, dtype=float)
     signed = np.asarray(signed, dtype=float)
@@ -1240,14 +1249,8 @@ def relief_shear(theta: np.ndarray, signed: np.ndarray) -> float | None:
     if starts.size != 1 or (ends[0] - starts[0]) * 0.5 > RELIEF_MAX_SPREAD_DEG:
         return None  # e not yet pinned down
     centre = grid[0] + np.radians(0.5 * (k + 0.5 * (starts[0] + ends[0] - 1)))
-    if np.median(np.abs(np.cos(theta[seen] - centre))) < 0.5 * RELIEF_MIN_COS:
-        # most steps seen where this e says they are under half as strong as
-        # where the tube fades: a tube that has not turned, a few of whose
-        # profiles (a stretch the fit missed, a few degrees off the rest)
-        # step the other way, pins an e just short of the fading, which its
-        # edges do not show. (At the fading's own |cos|, shears told on
-        # oblique light's strong, saturated edges were refused too.)
-        return None
+    if np.median(np.abs(np.cos(theta[seen] - centre))) < RELIEF_TOLD_COS:
+        return None  # most steps seen where e says they are all but faded
     return float(np.angle(np.exp(1j * centre)))
 
 
