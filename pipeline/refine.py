@@ -832,8 +832,9 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
             # scatter about the curve too, it held stiff a tip whose curvature
             # steps where no joint is known, which the curve cannot yet follow
             # (sample 5, its tip joint unseen: max error 6.5° against 4.6°)
-            tip_rough = _tip_rough(basis, stiff_px, curve.length,
-                                   _grain(delta[valid]) / noise_ref, curve.joints)
+            grain = _grain(delta[valid]) / noise_ref
+            if grain > 1.0:  # (else the clean frame's stretch, already built)
+                tip_rough = _tip_rough(basis, stiff_px, curve.length, grain, curve.joints)
         rough = basis.roughness + tip_stiffness * tip_rough
         lhs[:k, :k] += pen * rough
         rhs[:k] -= pen * rough @ curve.coef

@@ -127,6 +127,7 @@ def test_the_reported_tip_is_held_stiffer_than_the_fit():
     # the base-tangent fit (free_base) reports its own curve
     assert refine(img, truth, look, iterations=2, free_base=True).tip_correction is None
 
+
 def test_on_a_noisy_frame_the_stiff_tip_stretch_grows_with_the_noise(monkeypatch):
     """Where the edge midpoints scatter well above their reference, a stiff
     stretch of fixed length holds the tip tangent on too few samples' worth of
