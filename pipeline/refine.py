@@ -911,9 +911,11 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
             rhs_out[:k] -= extra @ curve.coef
             # (and without the side edges on a round cap: their rows' share of
             # the normal equations taken out again)
-            keep = np.ones(b_vec.size, bool)
-            keep[:idx.size] = from_end >= CAP_OUTPUT_CLEAR_HW * hw * (look.cap or 0.0)
-            if not keep.all():
+            keep = slice(None)  # (a flat end, or none so near: no copies)
+            cap_px = CAP_OUTPUT_CLEAR_HW * hw * (look.cap or 0.0)
+            if (from_end < cap_px).any():
+                keep = np.ones(b_vec.size, bool)
+                keep[:idx.size] = from_end >= cap_px
                 a_cap, b_cap = a_mat[~keep], b_vec[~keep]
                 lhs_out -= a_cap.T @ a_cap
                 rhs_out -= a_cap.T @ b_cap

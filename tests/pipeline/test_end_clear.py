@@ -157,7 +157,7 @@ def test_a_round_capped_tube_is_tracked_to_its_apex(tmp_path, round_cap, monkeyp
     assert np.abs(lengths - length).max() < 0.5
     assert np.abs(errors).max() < 1.1
     if round_cap:
-        # the cap's side edges close in, unevenly on a curved tube's two sides:
+        # the cap's side edges close in, not evenly about a curved tube's axis:
         # kept in the shape reported, they turned the tip tangent (mean error
         # 0.36 deg, max 0.98, against 0.17 and 0.54 without them)
         assert np.abs(errors).max() < 0.7
