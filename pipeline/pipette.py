@@ -420,11 +420,11 @@ def wide_holder_end(image: np.ndarray, curve: Curve, half_width: float,
     -----
     Each profile across the curve (to four half-widths on each side) is
     reduced to its edges, the peaks of its gradient, and their span (the
-    outermost two's distance). The holder ends at the largest step down in
-    the span (its median over a tube width before against after) along the
-    curve's first part (the tube's share, :data:`MIN_TUBE_SHARE`, left past
-    it); the tube's width is the span over the two widths past the step, and
-    the holder's span must be :data:`HOLDER_EDGE_RATIO` times that on
+    outermost two's distance). The holder ends at a step down in the span
+    (its median over a tube width before against after) along the curve's
+    first part (the tube's share, :data:`MIN_TUBE_SHARE`, left past it): the
+    largest before which the span is :data:`HOLDER_EDGE_RATIO` times the
+    tube's width (the span over the two widths past the step) or more on
     :data:`HOLDER_EDGE_SHARE` of the profiles from the structure's start."""
     arc, z, _, normal = _sampled(curve)
     k = max(2, int(round(2 * half_width)))      # a tube width, in profiles 1 px apart
@@ -459,21 +459,34 @@ def wide_holder_end(image: np.ndarray, curve: Curve, half_width: float,
         warnings.simplefilter("ignore", RuntimeWarning)
         level = np.nanmedian(windows, axis=1)
     at = np.arange(int(MIN_WIDTHS * k), last - k)
-    ratio = level[at - k] / level[at]
-    if not np.isfinite(ratio).any():
-        return None
-    j = int(at[np.nanargmax(ratio)])
-    # (the medians step over half a window: the step itself is the first
-    # profile past there narrower than halfway between the two)
-    half = 0.5 * (level[j - k] + level[j])
-    narrow = np.flatnonzero(span[j:j + k] < half)
-    j += int(narrow[0]) if narrow.size else 0
-    past = span[j:j + 2 * k]
-    if np.isnan(past).mean() > 0.5:
-        return None
-    width = float(np.nanmedian(past))
-    wide = span[:j] >= HOLDER_EDGE_RATIO * width
-    if width <= 0 or wide.mean() < HOLDER_EDGE_SHARE:
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = level[at - k] / level[at]
+    # the steps down, largest first, each a width from the larger ones: the
+    # holder's is the largest whose stretch before it is all wide (a scratch
+    # across the tube further on widens its edges' span over a width or so,
+    # and steps down by more: 2.0x, against the clear pipette's 1.5x)
+    order = [int(i) for i in np.argsort(-np.where(np.isfinite(ratio), ratio, -np.inf),
+                                        kind="stable")
+             if ratio[i] >= HOLDER_EDGE_RATIO]
+    tried: list[int] = []
+    for i in order:
+        j = int(at[i])
+        if any(abs(j - t) <= k for t in tried):
+            continue
+        tried.append(j)
+        # (the medians step over half a window: the step itself is the first
+        # profile past there narrower than halfway between the two)
+        half = 0.5 * (level[j - k] + level[j])
+        narrow = np.flatnonzero(span[j:j + k] < half)
+        j += int(narrow[0]) if narrow.size else 0
+        past = span[j:j + 2 * k]
+        if np.isnan(past).mean() > 0.5:
+            continue
+        width = float(np.nanmedian(past))
+        wide = span[:j] >= HOLDER_EDGE_RATIO * width
+        if width > 0 and wide.mean() >= HOLDER_EDGE_SHARE:
+            break
+    else:
         return None
     s_end = float(arc[j])
     if section_to is not None:
@@ -860,8 +873,12 @@ def _profile_holder(ok: list[FrameTrack], image: np.ndarray, half_width: float,
         # where frames bent far, they must also bend as a tube clamped there
         # would, far better than one clamped at the tracked base: a short first
         # section of other walls keeps its shape nearly as well (a 35 px
-        # section, 2.7 px; hinge gain 24, holders 577-6800)
-        elif bent and gain < MIN_HINGE_GAIN:
+        # section, 2.7 px; hinge gain 24, holders 577-6800), and clamped at the
+        # step: a tube from a clear pipette, its base at the pipette's mouth,
+        # bent as one clamped there (the hinge 1 px from the base, gain 1031),
+        # and so kept its first, little-curved 16 px, whose profiles stepped
+        # into the rest's (78x their scatter)
+        elif bent and (gain < MIN_HINGE_GAIN or abs(hinge - at) > max(2.0, half_width)):
             break
         else:
             found = (at, change, wobble)

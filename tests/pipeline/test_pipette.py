@@ -609,3 +609,24 @@ def test_a_frame_passing_the_holder_s_end_within_a_half_width_is_cut_there(monke
     monkeypatch.setattr(pipette, "OFF_HOLDER_HW", 0.5)
     out, _ = pipette.drop_holder(shaken, lambda: img, 5.0)
     assert out[1].status == pipette.OFF_HOLDER
+
+
+def test_a_step_in_the_profiles_past_where_the_frames_hinge_is_no_holder():
+    """The bent frames hinge 1 px from the tracked base, as a tube clamped
+    there (at a clear pipette's mouth); the tube's first 16 px look darker,
+    and bend too little to leave the first frame's line by more than a px.
+    That stretch is tube: its end is no holder's, since the frames do not
+    bend as clamped there (an independent scene: 21 px cut off the tube)."""
+    results = [r.moved(100 - 150j)
+               for r in _clamped_tracks(1.0, [0.0, 0.5, 1.0, 2.0, 3.0], noise=1e-3)]
+    at, gain, _ = pipette.motion_hinge(results, HW, 32.0)
+    assert at == pytest.approx(1.0, abs=0.5) and gain > pipette.MIN_HINGE_GAIN
+    rr, cc = np.mgrid[0:300, 0:600].astype(float)
+    img = np.full((300, 600), 0.8)
+    img[(np.abs(rr - 150) <= HW) & (cc >= 100) & (cc <= 400)] = 0.4
+    img[(np.abs(rr - 150) <= HW) & (cc >= 100) & (cc <= 116)] = 0.3
+    img = (img + np.random.default_rng(0).normal(0.0, 0.01, img.shape)).astype(np.float32)
+    assert pipette.profile_change(img, results[0].curve, HW, 40.0)[1] >= pipette.MIN_CHANGE
+    out, note = pipette.drop_holder(results, lambda: img, HW)
+    assert note is None
+    assert all(r.curve.base == p.curve.base for r, p in zip(out, results, strict=True))
