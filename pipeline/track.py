@@ -156,6 +156,13 @@ RECORD_FRAMES = 32
 #: without finding the tube's side edges: further, its end has run on over the
 #: background to some other edge (dust, a blob) taken for the tube's end.
 END_GAP_HW = 2.0
+#: ... but where the end is found within :data:`LENGTH_JUMP` of the
+#: neighbouring frame's length, it may run this far: a tip that moves fast
+#: smears sideways over the exposure, and its side edges, wider apart and
+#: fainter, are not the tube's (an independent scene, 12.5 deg per frame:
+#: 4.5 half-widths without them; the end found 0.1 % off the last frame's
+#: length). An end run on to dust or a blob that far lies that far off too.
+SMEARED_END_GAP_HW = 6.0
 #: Largest accepted change of the tube's length from one frame to the next.
 MAX_LENGTH_STEP = 0.08
 #: Consecutive lost frames after which the tracker starts from scratch.
@@ -1056,7 +1063,8 @@ def _crop_box(curve: Curve, margin: float, shape):
     return r0, r1, c0, c1
 
 
-def _good(r: Refined, look: TubeLook, typical_px: float | None = None) -> bool:
+def _good(r: Refined, look: TubeLook, typical_px: float | None = None, *,
+          end_gap_hw: float = END_GAP_HW) -> bool:
     """Whether a fit passes the checks of a tube's edges: enough of them
     found, its end found (or its length held), and their residual within a
     fixed limit (0.5 px or 8 % of the half-width), their own scatter
@@ -1071,7 +1079,7 @@ def _good(r: Refined, look: TubeLook, typical_px: float | None = None) -> bool:
                                RESIDUAL_KEEP_MAX_HW * look.mean_half_width))
     return (r.valid_fraction >= MIN_VALID and r.coverage >= MIN_COVERAGE
             and (r.tip_found or r.length_held)
-            and r.end_gap_px <= END_GAP_HW * look.mean_half_width
+            and r.end_gap_px <= end_gap_hw * look.mean_half_width
             and r.residual_px <= limit)
 
 
@@ -1080,8 +1088,19 @@ def _accepted(r: Refined | None, look: TubeLook, length: float,
     """:func:`_good`, and the length within :data:`MAX_LENGTH_STEP` of
     ``length`` (a neighbouring frame's): a tube does not grow or shrink by a
     tenth between frames, and an end found that far off is noise or dust
-    beyond the tip, followed over the rounds."""
-    return r is not None and _good(r, look, typical_px) and _length_kept(r, length)
+    beyond the tip, followed over the rounds. (The stretch it may run at
+    its end without the tube's side edges: :func:`_end_gap_hw`.)"""
+    return (r is not None and _good(r, look, typical_px, end_gap_hw=_end_gap_hw(r, length))
+            and _length_kept(r, length))
+
+
+def _end_gap_hw(r: Refined, length: float) -> float:
+    """How far (half-widths) the fit ``r`` may run at its end without the
+    tube's side edges: :data:`SMEARED_END_GAP_HW` where it found the end
+    within :data:`LENGTH_JUMP` of ``length`` (a neighbouring frame's), else
+    :data:`END_GAP_HW`."""
+    kept = r.tip_found and abs(r.curve.length - length) <= LENGTH_JUMP * length
+    return SMEARED_END_GAP_HW if kept else END_GAP_HW
 
 
 def _length_kept(r: Refined, length: float) -> bool:
@@ -1994,7 +2013,7 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
                   else "lost: edges not found along the tube" if r.valid_fraction < MIN_VALID
                   else "lost: tip not found" if not r.tip_found
                   else _ran_on(r, last_length)
-                  if r.end_gap_px > END_GAP_HW * look.mean_half_width
+                  if r.end_gap_px > _end_gap_hw(r, last_length) * look.mean_half_width
                   else "lost: edges do not fit a smooth tube")
         return FrameTrack(index, reason, None, stage, r.residual_px, r.valid_fraction, work,
                           crossing=crossing)
