@@ -1,6 +1,7 @@
 """Frames whose tube runs out of the image (:mod:`pipeline.view`)."""
 
 import json
+from dataclasses import replace
 
 import cv2
 import numpy as np
@@ -130,6 +131,26 @@ def test_a_base_near_the_edge_is_carried_back_to_it_along_its_tangent():
     assert abs(tip_point(moved) - tip_point(near)) < 0.1
     assert out[0].fit.length == pytest.approx(203.0)
     assert out[1] is results[1] and out[2] is results[2]
+
+
+def test_a_wide_tube_s_base_a_holder_stub_s_length_in_is_not_carried_to_the_edge():
+    from pipeline.view import base_to_border
+
+    # a tube 40 px wide entering at -13 deg, its first whole profile 50 px (2.5
+    # half-widths) in, past a capillary's stub 1.25 widths long that the frames
+    # did not tell: a slant of 13 deg puts a first whole profile 4 x 0.23
+    # half-widths in, and one more is allowed, so 1.9 in all (at 2.9, an
+    # independent scene was carried 57 px back: its base 53 px off, 8 % long)
+    angle = np.radians(-13.0)
+    stub = Curve(base=-0.5 - 300.0j + 50.0 * np.exp(1j * angle), base_angle=angle,
+                 coef=np.zeros(8), length=600.0)
+    results = [FrameTrack(0, "ok", stub, "fast", fit=stub)]
+    out, gap = base_to_border(results, (480, 640), half_width=20.0)
+    assert gap == 0.0 and out[0] is results[0]
+    # one a half-width in at that slant still starts at the edge
+    near = replace(stub, base=-0.5 - 300.0j + 10.0 * np.exp(1j * angle))
+    out, gap = base_to_border([FrameTrack(0, "ok", near, "fast")], (480, 640), 20.0)
+    assert gap == pytest.approx(10.0)
 
 
 def test_a_tube_entering_from_the_border_at_a_slant_starts_at_the_edge(tmp_path):
