@@ -1688,17 +1688,10 @@ def _moved_base(curve: Curve, base: complex | None, turn: float = 0.0,
                     curve.joints)
 
 
-def _cut_at(curve: Curve, base: complex, reach: float = 0.0) -> tuple[float, float]:
+def _cut_at(curve: Curve, base: complex) -> tuple[float, float]:
     """How far along ``curve`` (px of arc) it first gets as far along its base
     axis as ``base``, and its tangent there, rad (for a ``base`` ahead of
-    its own: ``(0, base tangent)`` otherwise).
-
-    With ``reach`` (px), the tangent there is the intercept of a straight
-    line fitted to the tangent over that much of the curve from there (an
-    arc of steady curvature's own): a spline that kinks at joints inside a
-    holder (found there from the holder's edges and the tube's seen through
-    it) wiggles, and its tangent at one point within the holder was 9 deg
-    off on an independent scene."""
+    its own: ``(0, base tangent)`` otherwise)."""
     axis = np.exp(1j * curve.base_angle)
     shift = float(np.real((base - curve.base) * np.conj(axis)))
     if shift <= 0:
@@ -1707,19 +1700,7 @@ def _cut_at(curve: Curve, base: complex, reach: float = 0.0) -> tuple[float, flo
     smp = evaluate(curve, basis)
     along = np.real((smp.z - curve.base) * np.conj(axis)) >= shift
     k = int(np.argmax(along)) if along.any() else smp.z.size - 1
-    arc = basis.u * curve.length
-    end = min(int(np.searchsorted(arc, arc[k] + reach)), arc.size - 1)
-    if end <= k + 1:
-        return float(arc[k]), float(smp.phi[k])
-    # (the line's intercept, lowest power first)
-    at = np.polynomial.polynomial.polyfit(arc[k:end + 1] - arc[k], smp.phi[k:end + 1], 1)[0]
-    return float(arc[k]), float(at)
-
-
-#: The held-back frames' tangents where their curves pass a base moved
-#: forward are read off a line fitted to their tangents over this many
-#: half-widths past it (:func:`_cut_at`).
-TURN_FIT_HW = 4.0
+    return float(basis.u[k] * curve.length), float(smp.phi[k])
 
 
 def _turn_past_holder(pending, history: list[Curve], base: complex | None, turn: float,
@@ -1739,8 +1720,7 @@ def _turn_past_holder(pending, history: list[Curve], base: complex | None, turn:
     if base is None or not history:
         return turn
     ref = history[-1]
-    cuts = [(abs(r.bend_angle_rad),
-             *_cut_at(r.tracked, base + r.stage_shift, TURN_FIT_HW * half_width))
+    cuts = [(abs(r.bend_angle_rad), *_cut_at(r.tracked, base + r.stage_shift))
             for r, _ in pending if r.ok]
     if not cuts or np.median([s for _, s, _ in cuts]) <= half_width:
         return turn
