@@ -138,10 +138,16 @@ def _read_image(path: Path, where: str, channel: str | None = None) -> np.ndarra
             raise
         except Exception as exc:
             raise FrameError(f"{where}: not a readable TIFF ({type(exc).__name__})") from None
+    # (OpenCV logs a damaged file's decoder error, "[ERROR:0@0.6] ... readHeader
+    # IHDR chunk shall be first", on stderr, before the one-line message below)
+    level = cv2.utils.logging.getLogLevel()
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
     try:
         img = cv2.imread(str(path), _IMREAD_FLAGS)
     except cv2.error:
         img = None
+    finally:
+        cv2.utils.logging.setLogLevel(level)
     if img is None:  # cv2.imread reports failure by returning None, not raising
         size = _size(path)
         why = "empty file (0 bytes)" if size == 0 else "not a readable image"

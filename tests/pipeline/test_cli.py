@@ -117,19 +117,22 @@ def test_python_dash_m_pipeline_help_runs_the_same_cli():
     assert "calibrate" in proc.stdout and proc.stderr == ""
 
 
-def test_console_script_reports_a_corrupt_video_in_one_line(bad, tmp_path):
+@pytest.mark.parametrize("name, why", [
+    ("random.avi", "not a readable video (corrupt, or a codec this OpenCV lacks)"),
+    # (OpenCV's own log of the PNG decoder's error is kept off stderr too)
+    ("broken_pngs/frame_000.png", "not a readable image"),
+])
+def test_console_script_reports_a_corrupt_file_in_one_line(bad, tmp_path, name, why):
     script = Path(sys.executable).with_name("microtube")
     assert script.exists(), "the microtube console script is not installed beside python"
-    proc = subprocess.run([str(script), "track", str(bad / "random.avi"), "--out",
+    proc = subprocess.run([str(script), "track", str(bad / name), "--out",
                            str(tmp_path / "out"), "--um-per-px", "10"],
                           capture_output=True, text=True, timeout=120, check=False,
                           env={k: v for k, v in os.environ.items() if k != "MICROTUBE_DEBUG"})
     assert proc.returncode == 2
     assert proc.stdout == ""
     assert "Traceback" not in proc.stderr
-    assert proc.stderr.strip().splitlines() == [
-        f"microtube track: error: {bad / 'random.avi'}: not a readable video (corrupt, or a "
-        "codec this OpenCV lacks)"]
+    assert proc.stderr.strip().splitlines() == [f"microtube track: error: {bad / name}: {why}"]
     assert not (tmp_path / "out").exists()
 
 
