@@ -138,21 +138,28 @@ def _read_image(path: Path, where: str, channel: str | None = None) -> np.ndarra
             raise
         except Exception as exc:
             raise FrameError(f"{where}: not a readable TIFF ({type(exc).__name__})") from None
-    # (OpenCV logs a damaged file's decoder error, "[ERROR:0@0.6] ... readHeader
-    # IHDR chunk shall be first", on stderr, before the one-line message below)
-    level = cv2.utils.logging.getLogLevel()
-    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
-    try:
-        img = cv2.imread(str(path), _IMREAD_FLAGS)
-    except cv2.error:
-        img = None
-    finally:
-        cv2.utils.logging.setLogLevel(level)
-    if img is None:  # cv2.imread reports failure by returning None, not raising
+    img = _imread(path)
+    if img is None:
         size = _size(path)
         why = "empty file (0 bytes)" if size == 0 else "not a readable image"
         raise FrameError(f"{where}: {why}")
     return _native_dtype(_to_grey(img, where, channel=channel), where)
+
+
+def _imread(path: Path) -> np.ndarray | None:
+    """``cv2.imread`` of ``path`` as stored (depth and channels), or None where
+    it cannot be read (OpenCV reports that by returning None, or raising).
+    OpenCV's own log is silenced meanwhile: it prints a damaged file's decoder
+    error ("[ERROR:0@0.6] ... readHeader IHDR chunk shall be first") on stderr,
+    before the command line's one-line message."""
+    level = cv2.utils.logging.getLogLevel()
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+    try:
+        return cv2.imread(str(path), _IMREAD_FLAGS)
+    except cv2.error:
+        return None
+    finally:
+        cv2.utils.logging.setLogLevel(level)
 
 
 def _size(path: Path) -> int | None:
@@ -445,7 +452,7 @@ def first_colour(reader: FrameReader) -> np.ndarray | None:
                 img = _tiff_page(tif.pages[0], where, grey=False)
             rgb = True
         else:
-            img = cv2.imread(str(reader._files[0]), _IMREAD_FLAGS)
+            img = _imread(reader._files[0])
             rgb = False
     except (cv2.error, OSError, ValueError):
         return None
