@@ -80,6 +80,25 @@ def tube_image(shape, base, angle, length, kappa, half_width, *, polarity=-1,
     return np.clip(img, 0, 1).astype(np.float32)
 
 
+def profile_image(shape, base, angle, length, kappa, offsets, values, *,
+                  background=None, edge_px=0.7, noise=0.0, seed=0):
+    """A float32 frame of one tube whose cross-section is given as a table:
+    ``values`` at signed distances ``offsets`` (px, to the left of the axis,
+    increasing), linearly interpolated between them and ``background`` (default
+    the table's first value) past its ends; the end is cut flat, softened
+    over ``edge_px``."""
+    rows, cols = shape
+    rr, cc = np.mgrid[0:rows, 0:cols]
+    s, d = _signed_position(cc - 1j * rr, base, angle, length, kappa)
+    background = values[0] if background is None else background
+    across = np.interp(d, offsets, values, left=background, right=background)
+    along = 0.5 * (1 + erf(s / edge_px)) * 0.5 * (1 + erf((length - s) / edge_px))
+    img = background + (across - background) * along
+    if noise:
+        img += np.random.default_rng(seed).normal(0, noise, shape)
+    return np.clip(img, 0, 1).astype(np.float32)
+
+
 def relief_image(shape, base, angle, length, kappa, half_width, *, shear=-np.pi / 4,
                  gain=0.08, blur_px=1.0, noise=0.0, seed=0):
     """A float32 relief frame (differential interference contrast) of a solid tube.

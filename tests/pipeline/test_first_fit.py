@@ -15,7 +15,7 @@ from pipeline import segment, track
 from pipeline.centreline import Curve, fit_to_polyline, from_image, resample
 from pipeline.refine import TubeLook, refine
 from pipeline.render import Renderer, default_scene, truth_tables
-from tests.pipeline.synthetic import tube_image
+from tests.pipeline.synthetic import profile_image, tube_image
 
 
 def _first_frame(sample, look, **changes):
@@ -547,3 +547,38 @@ def test_an_eccentric_hollow_tube_is_found_at_its_outer_walls():
     inner = (z.real > 40) & (z.real < end - 40)
     # (the outer pair's midpoint: 0.5 px to the thick side, as the profile has it)
     assert np.abs(np.median(z.imag[inner]) + centre) < 1.0, np.median(z.imag[inner])
+
+
+#: Across an independent renderer's hollow tube in gamma-encoded bright field
+#: (16.7 px wide, its lumen 10 px wide and 0.7 px off-centre), every pixel from
+#: 10 px on one side of its axis to 11 px on the other (8-bit grey): the outer
+#: edges, a dark rim at each lumen wall, and the lighter band of the thick wall.
+HOLLOW_PROFILE = (226, 204, 165, 136, 117, 88, 74, 105, 150, 181, 175, 138, 95, 83, 114,
+                  145, 150, 145, 168, 205, 225, 229)
+
+
+@pytest.mark.parametrize("angle_deg", [0.0, 35.0])
+@pytest.mark.parametrize(("aside", "mask_hw"), [(-1.0, 6.0), (-2.0, 14.0)])
+def test_a_thick_wall_s_lumen_edge_is_not_taken_for_the_tube_s_edge(angle_deg, aside, mask_hw):
+    """Such a tube shows, beside its outer edge pair, a pair of one outer edge
+    and the thick wall's lumen edge, as strong and 12.4 px apart. A first fit
+    whose start lay nearer that pair's middle kept it: the tube 6.2 px wide
+    each side of a midline 2 px to one side, on every frame (a mask 14 px wide
+    across a holder, its skeleton 2 px off the axis). The wider pair sharing
+    one of its edges, as strong, is now taken for the tube."""
+    offsets = np.arange(-10.0, 12.0)
+    values = np.asarray(HOLLOW_PROFILE, dtype=float) / 255.0
+    angle = np.radians(angle_deg)
+    base = complex(0.0, -150.0) if angle_deg == 0 else complex(0.0, -300.0)
+    image = profile_image((360, 480), base, angle, 380.0, 0.0, offsets, values,
+                          background=230 / 255, noise=0.005)
+    normal = np.exp(1j * (angle + np.pi / 2))
+    start = base + np.linspace(0.0, 380.0, 200) * np.exp(1j * angle) + aside * normal
+    mask = segment.Detection(start, complex(start[0]), angle, mask_hw, "given")
+    r, look, _ = track.initialise(image, detection=mask)
+    assert look.mean_half_width == pytest.approx(8.35, abs=0.3)
+    # the measured midline against the outer pair's middle, 0.15 px beside the axis
+    s, z = resample(r.curve)
+    mid = z[(s > 0.2 * s[-1]) & (s < 0.8 * s[-1])]
+    offset = np.real((mid - base) * np.conj(normal))
+    assert np.all(np.abs(offset - 0.15) <= 0.3)
