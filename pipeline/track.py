@@ -1345,7 +1345,13 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
             result = replace(result, end_clear=look.clears_end, cap=look.cap)
             if not result.crossing:
                 look = end_votes.add(result.end_offset, look)
+                cap_before = look.cap
                 look = cap_votes.add(result.cap_shape, look)
+                if cap_before is None and look.cap:
+                    # the lengths so far ended at the lines' ends, short of a
+                    # round cap's apex: a frame measured to its apex would
+                    # read as a jump from them and be held at their length
+                    lengths = []
                 look = end_step_votes.add(result.end_steps, look, result.bend_angle_rad)
             if look.end_step_px:
                 result = replace(result, end_step=_told_step(look))

@@ -100,20 +100,29 @@ def profile_image(shape, base, angle, length, kappa, offsets, values, *,
 
 
 def relief_image(shape, base, angle, length, kappa, half_width, *, shear=-np.pi / 4,
-                 gain=0.08, blur_px=1.0, noise=0.0, seed=0):
+                 gain=0.08, blur_px=1.0, noise=0.0, seed=0, round_cap=False):
     """A float32 relief frame (differential interference contrast) of a solid tube.
 
     The image is ``0.5 + gain ·`` the slope along ``shear`` (rad, CCW from +x,
     y up) of the tube's optical path length 2·√(r² − d²) (px), blurred by
     ``blur_px``: lit on the flank whose inward normal faces the shear, shaded
-    on the other, fading where the tube runs along it. The end is cut flat.
+    on the other, fading where the tube runs along it. The end is cut flat at
+    ``length``, or with ``round_cap`` is a hemisphere of the tube's radius
+    whose apex lies there (the path through it 2·√(r² − ρ²), ρ the distance
+    from its centre).
     """
     from scipy.ndimage import gaussian_filter
 
     rows, cols = shape
     rr, cc = np.mgrid[0:rows, 0:cols]
-    s, d = _signed_position(cc - 1j * rr, base, angle, length, kappa)
-    path = 2 * np.sqrt(np.clip(half_width**2 - d**2, 0, None)) * ((s >= 0) & (s <= length))
+    zp = cc - 1j * rr
+    s, d = _signed_position(zp, base, angle, length, kappa)
+    body = (s >= 0) & (s <= length)
+    if round_cap:
+        z, _ = arc_axis(base, angle, length - half_width, kappa, n=2)
+        d = np.where(s > length - half_width, np.abs(zp - z[-1]), d)
+        body = s >= 0
+    path = 2 * np.sqrt(np.clip(half_width**2 - d**2, 0, None)) * body
     path = gaussian_filter(path, blur_px)
     d_row, d_col = np.gradient(path)
     slope = d_col * np.cos(shear) - d_row * np.sin(shear)
