@@ -353,13 +353,21 @@ def _best_pairs(left, right, *, step, half_width, window, width_tol, min_strengt
 
 
 def end_edge(profiles: np.ndarray, step: float, *, polarity: int, window: float,
-             smooth_px: float = 0.8, strong: float = 0.6, nearest: bool = False):
+             smooth_px: float = 0.8, strong: float = 0.6, nearest: bool = False,
+             face_line: bool = True):
     """Position of the tube's end on profiles running along the tangent, tip outwards.
 
     The *outermost* strong tube → background step within ±window is taken, so
     that an inner edge (the end of the lumen inside a sealed tip) is not
     mistaken for the end of the tube; with ``nearest`` (crossings), the strong
-    step nearest the window's centre.
+    step nearest the window's centre. In a relief (``polarity`` 0) a cut end
+    face shows as a line, placed midway between its flanks
+    (:func:`_relief_line`); with ``face_line`` False (a round cap, whose
+    path length falls to nothing at its apex: a lobe, not a line, and the
+    strong step inside it the lumen's end) at its outer flank, a blur
+    beyond the apex as the side edges lie a blur outside the walls. (On two
+    independent sets' DIC tubes with round caps the middle lay 1.1-2.0 px
+    inside the apex, the outer flank 0.4-1.0 px beyond it.)
 
     Returns
     -------
@@ -392,7 +400,7 @@ def end_edge(profiles: np.ndarray, step: float, *, polarity: int, window: float,
         idx = p - 1 - np.argmax(ok[:, ::-1], axis=1)
     found = ok.any(axis=1)
     pos = _parabolic(leaving, idx)
-    if polarity == 0:
+    if polarity == 0 and face_line:
         pos = _relief_line(grad, idx, pos, ok_from=strong * peak[:, 0], bad=bad | ~inwin)
     offset = np.where(found, (pos - mid) * step, np.nan)
     return offset, np.where(found, masked[np.arange(m), idx], -np.inf)

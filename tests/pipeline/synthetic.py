@@ -100,7 +100,7 @@ def profile_image(shape, base, angle, length, kappa, offsets, values, *,
 
 
 def relief_image(shape, base, angle, length, kappa, half_width, *, shear=-np.pi / 4,
-                 gain=0.08, blur_px=1.0, noise=0.0, seed=0, round_cap=False):
+                 gain=0.08, blur_px=1.0, noise=0.0, seed=0, round_cap=False, lumen=0.0):
     """A float32 relief frame (differential interference contrast) of a solid tube.
 
     The image is ``0.5 + gain ·`` the slope along ``shear`` (rad, CCW from +x,
@@ -109,7 +109,8 @@ def relief_image(shape, base, angle, length, kappa, half_width, *, shear=-np.pi 
     on the other, fading where the tube runs along it. The end is cut flat at
     ``length``, or with ``round_cap`` is a hemisphere of the tube's radius
     whose apex lies there (the path through it 2·√(r² − ρ²), ρ the distance
-    from its centre).
+    from its centre). A ``lumen`` (its radius as a fraction of the tube's,
+    on the axis) runs to the cap, or to the flat end's face.
     """
     from scipy.ndimage import gaussian_filter
 
@@ -123,6 +124,11 @@ def relief_image(shape, base, angle, length, kappa, half_width, *, shear=-np.pi 
         d = np.where(s > length - half_width, np.abs(zp - z[-1]), d)
         body = s >= 0
     path = 2 * np.sqrt(np.clip(half_width**2 - d**2, 0, None)) * body
+    if lumen:
+        s_l, d_l = _signed_position(zp, base, angle, length, kappa)
+        end = length - half_width if round_cap else length
+        path -= (2 * np.sqrt(np.clip((lumen * half_width) ** 2 - d_l**2, 0, None))
+                 * ((s_l >= 0) & (s_l <= end)))
     path = gaussian_filter(path, blur_px)
     d_row, d_col = np.gradient(path)
     slope = d_col * np.cos(shear) - d_row * np.sin(shear)
