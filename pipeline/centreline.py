@@ -154,6 +154,15 @@ def make_basis(n_coef: int, n_grid: int, joints: tuple[float, ...] = ()) -> Basi
                  trace)
 
 
+@lru_cache(maxsize=64)
+def angle_spline(n_coef: int, joints: tuple[float, ...] = ()) -> BSpline:
+    """The ``n_coef`` + 1 basis functions of :func:`make_basis` (B_0, which
+    :class:`Basis` leaves out, first) as one vector-valued spline, for their
+    values or derivatives anywhere: ``angle_spline(n, j)(u, nu=2)`` is
+    (len(u), n + 1)."""
+    return BSpline(knot_vector(n_coef, joints), np.eye(n_coef + 1), 3)
+
+
 def basis_of(curve: Curve, n_grid: int | None = None) -> Basis:
     """The basis ``curve`` is written in, on ``n_grid`` nodes (default: ≤ 2 px apart)."""
     return make_basis(curve.coef.size, n_grid or n_grid_for(curve.length), curve.joints)

@@ -20,6 +20,7 @@ from scipy.special import ndtri
 
 from .centreline import (
     Curve,
+    angle_spline,
     basis_of,
     evaluate,
     fit_to_polyline,
@@ -174,6 +175,15 @@ TIP_STIFF_WIDTHS = 1.0
 #: 0.06; sample 1 at 71 um/px, whose last section is 17 px, 9.5 -> 10.3 deg,
 #: failing either way); 100 was better on 19 and worse on 12.
 TIP_OUTPUT_STIFFNESS = 30.0
+#: Where the frames tell that the tube's curvature changes along its end
+#: (:attr:`TubeLook.tip_trend`), the shape reported holds the tip stretch's
+#: curvature not constant but to the trend it had over the stretch before
+#: (:func:`_tip_trend`): a tube stiffer toward its base curls more toward its
+#: tip, and a constant-curvature tip stretch under-measured it (0.2-1.2 deg
+#: on an independent set's ramps). Where the edges tell against the trend
+#: (the check below), the constant hold is tried next.
+#: Midpoint nodes of the trend's integral over the stretch.
+TIP_TREND_NODES = 24
 #: ... unless that raises the edges' residual sum of squares by more than this
 #: many times their residual variance (chi-square of one degree of freedom at
 #: 5 %): a curvature step within the stretch (sample 5 with a joint the fit
@@ -305,6 +315,11 @@ class TubeLook:
         find the end (:func:`_tip_offset`) lie beside the axis, and beside it
         a round cap ends short of its apex by ``r − √(r² − y²)``: the end
         is put that much (their median) beyond the lines' median end.
+    tip_trend : bool
+        The frames told that the tube's curvature changes along its end
+        (:class:`pipeline.track._TrendVotes`): the shape reported holds the
+        tip stretch to its curvature's trend from the stretch before
+        (:func:`_tip_trend`), not to a constant curvature.
     """
 
     polarity: int
@@ -317,6 +332,7 @@ class TubeLook:
     end_step_offset: float = 0.0
     strip_lines: int = STRIP_LINES
     cap: float | None = None
+    tip_trend: bool = False
 
     @property
     def strip_half_px(self) -> float:
@@ -459,8 +475,9 @@ class Refined:
         The measured centre of the tube on each profile (midway between its
         edges), full-frame px (y up); NaN where invalid.
     tip_correction : (K,) ndarray, optional
-        Change of ``curve.coef`` (rad) that holds the tip's curvature as
-        :data:`TIP_OUTPUT_STIFFNESS` asks: added for the shape reported,
+        Change of ``curve.coef`` (rad) that holds the tip stretch as
+        :data:`TIP_OUTPUT_STIFFNESS` asks (to its curvature's trend, else to
+        a constant curvature: ``tip_hold``): added for the shape reported,
         not for the next frame's fit.
     noise_px : float
         The valid profiles' centres' scatter from one profile to the next
@@ -506,6 +523,11 @@ class Refined:
         round: the share of a round cap of the tube's radius (0 flat, 1 a
         hemisphere; :attr:`TubeLook.cap`) that fits their ends best (NaN
         where too few lines found the end).
+    tip_hold : str
+        How ``tip_correction`` holds the tip stretch: ``"trend"`` (its
+        curvature's trend from the stretch before, :func:`_tip_trend`),
+        ``"constant"`` (a constant curvature), or ``""`` (not held: none
+        asked for, or the edges told against both).
     """
 
     curve: Curve
@@ -529,6 +551,7 @@ class Refined:
     told_offset: float = float("nan")
     end_profile: np.ndarray | None = None
     cap_shape: float = float("nan")
+    tip_hold: str = ""
 
     @property
     def valid_fraction(self) -> float:
@@ -581,13 +604,12 @@ def _profile_layout(curve: Curve, look: TubeLook, n_grid: int, window: float, wi
     return (idx, *_profile_offsets(hw, window, width_tol))
 
 
-def _tip_rough(basis, stiff_px: float, length: float, noise: float = 1.0,
-               joints: tuple[float, ...] = ()) -> np.ndarray:
-    """The roughness matrix ∫φ''² du over the tube's stiff end stretch.
+def _tip_span(stiff_px: float, length: float, noise: float = 1.0,
+              joints: tuple[float, ...] = ()) -> float:
+    """The length of the tube's stiff end stretch, as a fraction of its length.
 
     Parameters
     ----------
-    basis : Basis
     stiff_px : float
         The stretch's length on a clean frame, px.
     length : float
@@ -605,9 +627,52 @@ def _tip_rough(basis, stiff_px: float, length: float, noise: float = 1.0,
     reach = TIP_STRETCH_MAX_SHARE * length
     if joints:
         reach = min(reach, (1.0 - joints[-1]) * length)
-    span = max(stiff_px, min(grow * stiff_px, reach))
-    rows = basis.quad_second[basis.quad_u > 1.0 - span / length]
+    return max(stiff_px, min(grow * stiff_px, reach)) / length
+
+
+def _tip_rough(basis, span: float) -> np.ndarray:
+    """The roughness matrix ∫φ''² du over the last ``span`` of the tube
+    (:func:`_tip_span`): it holds the curvature there constant."""
+    rows = basis.quad_second[basis.quad_u > 1.0 - span]
     return rows.T @ rows
+
+
+def _tip_trend(n_coef: int, joints: tuple[float, ...], span: float) -> np.ndarray | None:
+    """The matrix of ∫(φ''(u) − φ''(u − span))² du over the last ``span`` of
+    the tube: it holds the rate of change of the curvature there (φ'') to
+    what it was one stretch before, so that the curvature keeps the trend it
+    had, constant or ramping, rather than its value.
+
+    None where that stretch before would reach back to the last section joint
+    (a step of the curvature there is no trend).
+    """
+    if joints and joints[-1] >= 1.0 - 2.0 * span:
+        return None
+    spline = angle_spline(n_coef, joints)
+    u = 1.0 - span + span * (np.arange(TIP_TREND_NODES) + 0.5) / TIP_TREND_NODES
+    # (midpoint rule; B_0, held, left out)
+    rows = (spline(u, nu=2) - spline(u - span, nu=2))[:, 1:] * np.sqrt(span / TIP_TREND_NODES)
+    return rows.T @ rows
+
+
+def tip_stiff_px(half_width: float) -> float:
+    """The stiff end stretch's length on a clean frame, px."""
+    return max(TIP_STIFF_WIDTHS * 2 * half_width, TIP_STIFF_MIN_PX)
+
+
+def trend_sample(curve: Curve, half_width: float) -> tuple[float, float] | None:
+    """The curvature's rate of change and its mean over the stretch before the
+    clean frame's stiff end stretch (:func:`_tip_span`), both in units of the
+    normalised arc length (rad per unit u², rad per unit u), from ``curve``'s
+    spline; None where that stretch reaches back to the last section joint."""
+    span = _tip_span(tip_stiff_px(half_width), curve.length)
+    a, b = 1.0 - 2.0 * span, 1.0 - span
+    if a <= 0.0 or (curve.joints and curve.joints[-1] >= a):
+        return None
+    spline = angle_spline(curve.coef.size, curve.joints)
+    phi = spline([a, b])[:, 1:] @ curve.coef
+    slope = spline([a, b], nu=1)[:, 1:] @ curve.coef
+    return float((slope[1] - slope[0]) / span), float((phi[1] - phi[0]) / span)
 
 
 def _grain(centres: np.ndarray) -> float:
@@ -741,8 +806,9 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
     told_offset = np.nan
     end_profile = None
     min_strength = 0.25 * look.strength
-    stiff_px = max(TIP_STIFF_WIDTHS * 2 * hw, TIP_STIFF_MIN_PX)
-    clean_rough = _tip_rough(basis, stiff_px, curve.length)
+    stiff_px = tip_stiff_px(hw)
+    clean_span = _tip_span(stiff_px, curve.length)
+    clean_rough = _tip_rough(basis, clean_span)
     hold = None
     if avoid_contact and tip_ratio is not None and curve.joints:
         turns, spans = _section_turns(curve.coef.size, curve.joints)
@@ -752,6 +818,7 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
     cap_shape = np.nan
     edges = None
     tip_correction = None
+    tip_hold = ""
     last_section = None
     var = np.inf
     it = 0
@@ -797,7 +864,7 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
         delta = np.where(valid, edges.centre, 0.0)
         weights = valid.astype(float)
         sig = np.inf
-        tip_rough = clean_rough
+        tip_rough, tip_span = clean_rough, clean_span
         if valid.sum() >= 4:
             # (the normal-scaled MAD by hand, from the deviations the weights need:
             # scipy.stats.median_abs_deviation costs 9x as much per call, 15 % of
@@ -850,7 +917,8 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
             # (sample 5, its tip joint unseen: max error 6.5° against 4.6°)
             grain = _grain(delta[valid]) / noise_ref
             if grain > 1.0:  # (else the clean frame's stretch, already built)
-                tip_rough = _tip_rough(basis, stiff_px, curve.length, grain, curve.joints)
+                tip_span = _tip_span(stiff_px, curve.length, grain, curve.joints)
+                tip_rough = _tip_rough(basis, tip_span)
         rough = basis.roughness + tip_stiffness * tip_rough
         lhs[:k, :k] += pen * rough
         rhs[:k] -= pen * rough @ curve.coef
@@ -905,10 +973,7 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
             # the same step with the tip held stiffer, for the shape reported
             # (one more solve of the same small system; the fit itself, which
             # must follow a tip that moves fast, keeps tip_stiffness)
-            extra = pen * (output_stiffness - tip_stiffness) * tip_rough
             lhs_out, rhs_out = lhs.copy(), rhs.copy()
-            lhs_out[:k, :k] += extra
-            rhs_out[:k] -= extra @ curve.coef
             # (and without the side edges on a round cap: their rows' share of
             # the normal equations taken out again)
             keep = slice(None)  # (a flat end, or none so near: no copies)
@@ -919,16 +984,31 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
                 a_cap, b_cap = a_mat[~keep], b_vec[~keep]
                 lhs_out -= a_cap.T @ a_cap
                 rhs_out -= a_cap.T @ b_cap
-            step_out = np.linalg.solve(lhs_out + np.diag(damp), rhs_out)
-            # kept unless the edges tell against it: the rise of the residual
-            # sum of squares, in units of the fit's residual variance, is a
-            # chi-square of about one degree of freedom (a curvature step
-            # within the stretch, a joint the fit has not found, rises 27-34)
-            # (over the edges it was solved with)
-            miss_out = (a_mat @ step_out - b_vec)[keep]
-            if miss_out @ miss_out - miss[keep] @ miss[keep] <= TIP_OUTPUT_CHI2 * var:
-                tip_correction = step_out[:k] - step_x[:k]
-                system, step_rep = lhs_out + np.diag(damp), step_out
+            # held to the trend of its curvature (the fit's own constant hold
+            # taken out again) where one can be read, else to a constant one
+            holds = [("constant", pen * (output_stiffness - tip_stiffness) * tip_rough)]
+            trend = _tip_trend(k, curve.joints, tip_span) if look.tip_trend else None
+            if trend is not None:
+                holds.insert(0, ("trend", pen * (output_stiffness * trend
+                                                 - tip_stiffness * tip_rough)))
+            tip_hold = ""
+            for hold_kind, extra in holds:
+                lhs_try = lhs_out.copy()
+                lhs_try[:k, :k] += extra
+                step_out = np.linalg.solve(lhs_try + np.diag(damp),
+                                           np.concatenate([rhs_out[:k] - extra @ curve.coef,
+                                                           rhs_out[k:]]))
+                # kept unless the edges tell against it: the rise of the residual
+                # sum of squares, in units of the fit's residual variance, is a
+                # chi-square of about one degree of freedom (a curvature step
+                # within the stretch, a joint the fit has not found, rises 27-34)
+                # (over the edges it was solved with)
+                miss_out = (a_mat @ step_out - b_vec)[keep]
+                if miss_out @ miss_out - miss[keep] @ miss[keep] <= TIP_OUTPUT_CHI2 * var:
+                    tip_correction = step_out[:k] - step_x[:k]
+                    system, step_rep = lhs_try + np.diag(damp), step_out
+                    tip_hold = hold_kind
+                    break
         if (last and not free_base and curve.joints and np.isfinite(var) and var > 0
                 and not (hold is not None and in_last.any() and valid[in_last].mean() < 0.5)):
             # (not where the fit itself already held the last section, to the one before)
@@ -961,7 +1041,7 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
     return Refined(curve, u, width, edges.valid, rms, tip_found, it, strength, ~dropped, mids,
                    tip_correction, noise, last_section, end_offset, end_steps, in_view=in_view,
                    last_move_px=float(move), told_offset=told_offset, end_profile=end_profile,
-                   cap_shape=cap_shape)
+                   cap_shape=cap_shape, tip_hold=tip_hold)
 
 
 def end_step_left_out(curve: Curve, step_px: float, offset_px: float) -> bool:

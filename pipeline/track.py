@@ -102,6 +102,7 @@ from .refine import (
     relief_shear,
     section_ratio,
     self_contact,
+    trend_sample,
     widths_at,
 )
 from .segment import (
@@ -364,6 +365,18 @@ SKELETON_SMOOTHING = BASE_SMOOTHING / STRIP_LINES
 CAP_VOTE_FRAMES = 4
 #: A share of a round cap below this is a flat end's (:class:`_CapVotes`).
 CAP_MIN = 0.5
+#: The tip stretch is held to its curvature's trend (:class:`_TrendVotes`)
+#: once at least this many frames ...
+TREND_VOTE_FRAMES = 5
+#: ... tell the curvature's rate of change before it in proportion to the
+#: curvature there, with a ratio this many standard errors from nought. Under
+#: the paper's models every curvature grows with the one load, so that ratio
+#: is the tube's; an arc's frames scatter about nought. Over whole videos of
+#: the independent sets: ramping tubes 8-126 (told by their 5th-14th frame,
+#: a few by the 25th), arcs below 2.5 but for a straight plug at the tip (4.5)
+#: and an over-curl (9); 3 was reached by chance, on the way, by 8 of alien4's
+#: 34 videos (refits of the reported centrelines).
+TREND_MIN_Z = 5.0
 #: The side edges near the tube's end are left out (:class:`_EndVotes`) once at
 #: least this many frames ...
 END_VOTE_FRAMES = 4
@@ -535,6 +548,9 @@ class FrameTrack:
     cap : float or None
         The look's :attr:`pipeline.refine.TubeLook.cap` once this frame was
         fitted (None: not told yet).
+    tip_hold : str
+        :attr:`pipeline.refine.Refined.tip_hold` of the fit the shape
+        reported came from.
     """
 
     frame: int
@@ -563,6 +579,7 @@ class FrameTrack:
     stage_shift: complex = 0j
     cap_shape: float = float("nan")
     cap: float | None = None
+    tip_hold: str = ""
 
     def moved(self, step: complex) -> FrameTrack:
         """This frame with its curves moved by ``step`` (px, y up)."""
@@ -1242,6 +1259,7 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
     # how far the edges near the tube's end sit off the rest's line, until that tells
     end_votes = _EndVotes()
     cap_votes = _CapVotes()
+    trend_votes = _TrendVotes()
     end_step_votes = _EndStepVotes()
     # the edges' residual on the last frames measured (not at crossings)
     residuals: list[float] = []
@@ -1353,6 +1371,7 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
                     # read as a jump from them and be held at their length
                     lengths = []
                 look = end_step_votes.add(result.end_steps, look, result.bend_angle_rad)
+                look = trend_votes.add(result.fit, look)
             if look.end_step_px:
                 result = replace(result, end_step=_told_step(look))
             if look.polarity == 0 and look.shear is None and not result.crossing:
@@ -1496,6 +1515,49 @@ class _CapVotes:
         # (a flat end's corners, blurred, end the lines beside the axis a little
         # early too: shares of 0.07-0.26 on this package's blurred scenes)
         return replace(look, cap=float(min(share, 1.0)) if share >= CAP_MIN else 0.0)
+
+
+@dataclass
+class _TrendVotes:
+    """The curvature's rate of change g and its mean c over the stretch before
+    the tube's stiff end stretch, frame by frame
+    (:func:`pipeline.refine.trend_sample`), until :data:`TREND_VOTE_FRAMES`
+    tell a ratio g/c :data:`TREND_MIN_Z` standard errors from nought (least
+    squares of g = ρ·c): then the look's :attr:`TubeLook.tip_trend` is set,
+    and stays.
+
+    The shape reported holds the tip stretch, where the edges say least, to a
+    constant curvature unless told so. Held to the trend of the stretch before
+    on every frame, it followed a curvature that ramps (an independent set,
+    alien7, whose tubes' curvature grows by 10-30 % over their last 60 px:
+    bend medians 0.6-1.8 -> 0.2-1.0 deg), but on arcs it carried that
+    stretch's noise to the tip (medians up by > 0.02 deg on 51 of 97 scenes
+    of the three other sets). Told by the frames: alien7 11 -> 14 of 23 meet
+    every target, angle medians better / worse by > 0.02 deg on 12 / 5; the
+    other three sets 82 -> 83 of 97, 2 better / 3 worse (at most 0.15 deg,
+    motion_blur_fast, failing either way); the repo's own 38 unchanged."""
+
+    samples: list[tuple[float, float]] = field(default_factory=list)
+
+    def add(self, curve: Curve | None, look: TubeLook) -> TubeLook:
+        """``look``, told the trend once the frames so far show one."""
+        if look.tip_trend or curve is None:
+            return look
+        sample = trend_sample(curve, look.mean_half_width)
+        if sample is None:
+            return look
+        self.samples.append(sample)
+        if len(self.samples) < TREND_VOTE_FRAMES:
+            return look
+        g, c = np.array(self.samples).T
+        cc = c @ c
+        if cc <= 0:
+            return look
+        ratio = (g @ c) / cc
+        var = np.sum((g - ratio * c) ** 2) / (g.size - 1)
+        if abs(ratio) * np.sqrt(cc) < TREND_MIN_Z * np.sqrt(var):
+            return look
+        return replace(look, tip_trend=True)
 
 
 @dataclass
@@ -1834,7 +1896,8 @@ def _refitted(pending, base: complex | None, turn: float, look: TubeLook | None,
                            valid_fraction=r.valid_fraction, last_section=r.last_section,
                            end_clear=look.clears_end, end_step=_told_step(look),
                            end_offset=r.end_offset, end_steps=r.end_steps,
-                           told_offset=r.told_offset, end_profile=r.end_profile)
+                           told_offset=r.told_offset, end_profile=r.end_profile,
+                           tip_hold=r.tip_hold)
                    if _good(r, look) else restaged.get(result.frame, result))
     # a held-back frame that bent away from the frames either side of it and
     # back (the frame after a start has no motion to be predicted from, and a
@@ -1863,7 +1926,8 @@ def _refitted(pending, base: complex | None, turn: float, look: TubeLook | None,
                                     r.valid_fraction, fit=r.curve, crossing=crossing,
                                     last_section=r.last_section,
                                     end_step=_told_step(look), stage_shift=stage,
-                                    told_offset=r.told_offset, end_profile=r.end_profile)
+                                    told_offset=r.told_offset, end_profile=r.end_profile,
+                                    tip_hold=r.tip_hold)
         # a motion only between consecutive frames
         after = later if out[i].ok and i + 1 < len(out) and out[i + 1].ok else None
         later, stage = (out[i].tracked, out[i].stage_shift) if out[i].ok else (later, stage)
@@ -1950,7 +2014,7 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
                            last_section=r.last_section if status == "ok" else None,
                            end_offset=r.end_offset, end_steps=r.end_steps,
                            told_offset=r.told_offset, end_profile=r.end_profile,
-                           cap_shape=r.cap_shape), look)
+                           cap_shape=r.cap_shape, tip_hold=r.tip_hold), look)
     hw = look.mean_half_width
     pred = _predict(history)
     last_length = history[-1].length
@@ -2130,7 +2194,7 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
                       crossing=crossing, fit=r.curve, last_section=r.last_section,
                       end_offset=r.end_offset, end_steps=r.end_steps,
                       told_offset=r.told_offset, end_profile=r.end_profile,
-                      cap_shape=r.cap_shape)
+                      cap_shape=r.cap_shape, tip_hold=r.tip_hold)
 
 
 def _in_view_on(fit: Refined) -> bool:

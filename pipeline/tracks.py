@@ -332,6 +332,7 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
     strips_note = _strips_note(results, binning)
     if strips_note:
         notes.append(strips_note)
+    notes.append(_tip_hold_note(results))
     notes.append(_end_note(results))
     notes.append(_cap_note(results))
     notes.append(_drift_note(results, base_hint is not None))
@@ -875,6 +876,18 @@ def _cap_note(results) -> str:
     return (f"tube's end: a round cap ({told[-1]:.2f} of a hemisphere of its radius, from "
             "where the lines beside its axis ended): the tip put at its apex, the side "
             "edges on the cap left out")
+
+
+def _tip_hold_note(results) -> str:
+    """How the shape reported held the tube's end stretch, on how many frames."""
+    counts = Counter(r.tip_hold for r in results if r.ok)
+    n = sum(counts.values())
+    return (f"tip stretch held to its curvature's trend from the stretch before on "
+            f"{counts['trend']} of {n} frames, to a constant curvature on {counts['constant']} "
+            "(the frames so far did not tell the curvature change along the end, a section "
+            "joint lay within two stretches of the end, or the edges told against the trend), "
+            f"left as fitted on {counts['']} (the edges told against both, or the base's own "
+            "fit)")
 
 
 def _end_note(results) -> str:

@@ -138,6 +138,48 @@ def relief_image(shape, base, angle, length, kappa, half_width, *, shear=-np.pi 
     return np.clip(img, 0, 1).astype(np.float32)
 
 
+def ramp_axis(base: complex, angle: float, length: float, k_base: float, k_tip: float,
+              step: float = 0.05):
+    """Points (px, y up), arc lengths and headings of an axis whose curvature
+    ramps linearly from ``k_base`` at the base to ``k_tip`` at the end (1/px):
+    no chain of arcs, as a tube stiffer toward its base bends."""
+    s = np.arange(0.0, length + 0.5 * step, step)
+    phi = angle + k_base * s + 0.5 * (k_tip - k_base) * s**2 / length
+    z = base + np.concatenate([[0j], np.cumsum(np.exp(1j * 0.5 * (phi[1:] + phi[:-1]))
+                                               * np.diff(s))])
+    return z, s, phi
+
+
+def axis_image(shape, z, s, phi, half_width, *, polarity=-1, background=0.8, contrast=0.35,
+               edge_px=0.7, noise=0.0, seed=0):
+    """A float32 frame of a tube along any axis given by dense points ``z``
+    (px, y up; ≤ 0.1 px apart), their arc lengths ``s`` and headings ``phi``:
+    each pixel takes its distance from the nearest axis point, across and
+    along the heading there, as :func:`tube_image` does from an arc. Both
+    ends are cut flat."""
+    from scipy.spatial import cKDTree
+
+    rows, cols = shape
+    rr, cc = np.mgrid[0:rows, 0:cols]
+    zp = (cc - 1j * rr).ravel()
+    reach = half_width + 5 * edge_px + 1
+    # (pixels farther than that from every axis point are background: their
+    # index comes back as len(z), out of range)
+    _, k = cKDTree(np.column_stack([z.real, z.imag])).query(
+        np.column_stack([zp.real, zp.imag]), distance_upper_bound=reach)
+    near = k < z.size
+    k = k[near]
+    rel = (zp[near] - z[k]) * np.exp(-1j * phi[k])
+    along = s[k] + rel.real
+    inside = np.zeros(zp.size)
+    inside[near] = (0.5 * (1 + erf(along / edge_px)) * 0.5 * (1 + erf((s[-1] - along) / edge_px))
+                    * 0.5 * (1 + erf((half_width - np.abs(rel.imag)) / edge_px)))
+    img = background * (1 + polarity * contrast * inside.reshape(shape))
+    if noise:
+        img += np.random.default_rng(seed).normal(0, noise, shape)
+    return np.clip(img, 0, 1).astype(np.float32)
+
+
 def two_sections(k_body, k_tip, joint=0.8, length=400.0):
     """A centreline (:class:`pipeline.centreline.Curve`, base at 0, along +x)
     whose curvature steps from k_body to k_tip (1/px) at the fraction ``joint``
