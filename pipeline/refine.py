@@ -175,15 +175,6 @@ TIP_STIFF_WIDTHS = 1.0
 #: 0.06; sample 1 at 71 um/px, whose last section is 17 px, 9.5 -> 10.3 deg,
 #: failing either way); 100 was better on 19 and worse on 12.
 TIP_OUTPUT_STIFFNESS = 30.0
-#: Where the frames tell that the tube's curvature changes along its end
-#: (:attr:`TubeLook.tip_trend`), the shape reported holds the tip stretch's
-#: curvature not constant but to the trend it had over the stretch before
-#: (:func:`_tip_trend`): a tube stiffer toward its base curls more toward its
-#: tip, and a constant-curvature tip stretch under-measured it (0.2-1.2 deg
-#: on an independent set's ramps). Where the edges tell against the trend
-#: (the check below), the constant hold is tried next.
-#: Midpoint nodes of the trend's integral over the stretch.
-TIP_TREND_NODES = 24
 #: ... unless that raises the edges' residual sum of squares by more than this
 #: many times their residual variance (chi-square of one degree of freedom at
 #: 5 %): a curvature step within the stretch (sample 5 with a joint the fit
@@ -199,10 +190,19 @@ TIP_OUTPUT_CHI2 = 3.84
 #: better and 9 worse by > 0.02°; 12 and 20 px helped less, 45 px was worse on
 #: one set of the five. Tubes wider than 30 px are unaffected.
 TIP_STIFF_MIN_PX = 30.0
+# Where the frames tell that the tube's curvature changes along its end
+# (TubeLook.tip_trend), the shape reported holds the tip stretch's curvature
+# not constant but to the trend it had over the stretch before (_tip_trend): a
+# tube stiffer toward its base curls more toward its tip, and a
+# constant-curvature tip stretch under-measured it (0.2-1.2 deg on an
+# independent set's ramps). Where the edges tell against the trend
+# (TIP_OUTPUT_CHI2), the constant hold is tried next.
+#: Midpoint nodes of the trend's integral over the stretch (:func:`_tip_trend`).
+TIP_TREND_NODES = 24
 #: Where the edge midpoints scatter from one profile to the next by σ above
 #: their reference (see :data:`NOISE_REF_LINE_PX`), the stiff stretch grows
 #: with σ / ref, up to this many times its length, to at most this share of
-#: the tube and not past the last joint (:func:`_tip_rough`): the tip tangent
+#: the tube and not past the last joint (:func:`_tip_span`): the tip tangent
 #: then rests on about as many edge samples' worth of information as on a
 #: clean frame. A tube 8 px wide at 0.05 noise: tip angle RMS 1.03 -> 0.63°.
 #: On four independent sets (120 scenes): scenes meeting every target 88 -> 89,
@@ -644,9 +644,9 @@ def _tip_trend(n_coef: int, joints: tuple[float, ...], span: float) -> np.ndarra
     had, constant or ramping, rather than its value.
 
     None where that stretch before would reach back to the last section joint
-    (a step of the curvature there is no trend).
+    (a step of the curvature there is no trend) or to the base.
     """
-    if joints and joints[-1] >= 1.0 - 2.0 * span:
+    if 1.0 - 2.0 * span <= 0.0 or (joints and joints[-1] >= 1.0 - 2.0 * span):
         return None
     spline = angle_spline(n_coef, joints)
     u = 1.0 - span + span * (np.arange(TIP_TREND_NODES) + 0.5) / TIP_TREND_NODES
@@ -661,10 +661,10 @@ def tip_stiff_px(half_width: float) -> float:
 
 
 def trend_sample(curve: Curve, half_width: float) -> tuple[float, float] | None:
-    """The curvature's rate of change and its mean over the stretch before the
-    clean frame's stiff end stretch (:func:`_tip_span`), both in units of the
-    normalised arc length (rad per unit u², rad per unit u), from ``curve``'s
-    spline; None where that stretch reaches back to the last section joint."""
+    """The curvature's rate of change (rad/px²) and its mean (rad/px) over the
+    stretch before the clean frame's stiff end stretch (:func:`_tip_span`),
+    from ``curve``'s spline; None where that stretch reaches back to the last
+    section joint or to the base."""
     span = _tip_span(tip_stiff_px(half_width), curve.length)
     a, b = 1.0 - 2.0 * span, 1.0 - span
     if a <= 0.0 or (curve.joints and curve.joints[-1] >= a):
@@ -672,7 +672,9 @@ def trend_sample(curve: Curve, half_width: float) -> tuple[float, float] | None:
     spline = angle_spline(curve.coef.size, curve.joints)
     phi = spline([a, b])[:, 1:] @ curve.coef
     slope = spline([a, b], nu=1)[:, 1:] @ curve.coef
-    return float((slope[1] - slope[0]) / span), float((phi[1] - phi[0]) / span)
+    length = curve.length
+    return (float((slope[1] - slope[0]) / (span * length**2)),
+            float((phi[1] - phi[0]) / (span * length)))
 
 
 def _grain(centres: np.ndarray) -> float:

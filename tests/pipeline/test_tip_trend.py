@@ -91,9 +91,15 @@ def test_frames_that_ramp_alike_tell_the_trend_and_arcs_do_not():
             out.append(c.with_params(c.coef * (1 + 5e-4 * rng.standard_normal(c.coef.size)),
                                      c.length))
     told = _votes(ramps)
-    assert not any(told[:TREND_VOTE_FRAMES - 1]) and told[-1]
+    assert told[TREND_VOTE_FRAMES - 1] and told[-1]
     assert not any(_votes(arcs))
     # a fit whose last joint lies within the stretches looked at tells nothing
     z = ramp_axis(80 - 420j, 0.0, LENGTH, 0.002, 0.010)[0]
     jointed = fit_to_polyline(z[::20], 0.0, n_coef=16, joints=(0.9,))
     assert not any(_votes([jointed] * 8))
+    # nor does the same arc on every frame (its ratio, numerical noise, fits
+    # exactly), nor a fit gone NaN; the same ramp on every frame is a ramp
+    assert not any(_votes([arcs[-1]] * 8))
+    broken = ramps[-1].with_params(np.full(ramps[-1].coef.size, np.nan), LENGTH)
+    assert not any(_votes([broken] * 8))
+    assert _votes([ramps[-1]] * 8)[-1]
