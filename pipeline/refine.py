@@ -637,16 +637,23 @@ def _tip_rough(basis, span: float) -> np.ndarray:
     return rows.T @ rows
 
 
+def _trend_start(span: float, joints: tuple[float, ...]) -> float | None:
+    """Where the stretch before the last ``span`` of the tube begins (a
+    fraction of its length), or None where it would reach back to the last
+    section joint (a step of the curvature there is no trend) or to the base."""
+    start = 1.0 - 2.0 * span
+    return None if start <= 0.0 or (joints and joints[-1] >= start) else start
+
+
 def _tip_trend(n_coef: int, joints: tuple[float, ...], span: float) -> np.ndarray | None:
     """The matrix of ∫(φ''(u) − φ''(u − span))² du over the last ``span`` of
     the tube: it holds the rate of change of the curvature there (φ'') to
     what it was one stretch before, so that the curvature keeps the trend it
     had, constant or ramping, rather than its value.
 
-    None where that stretch before would reach back to the last section joint
-    (a step of the curvature there is no trend) or to the base.
+    None where that stretch before cannot be read (:func:`_trend_start`).
     """
-    if 1.0 - 2.0 * span <= 0.0 or (joints and joints[-1] >= 1.0 - 2.0 * span):
+    if _trend_start(span, joints) is None:
         return None
     spline = angle_spline(n_coef, joints)
     u = 1.0 - span + span * (np.arange(TIP_TREND_NODES) + 0.5) / TIP_TREND_NODES
@@ -663,11 +670,11 @@ def tip_stiff_px(half_width: float) -> float:
 def trend_sample(curve: Curve, half_width: float) -> tuple[float, float] | None:
     """The curvature's rate of change (rad/px²) and its mean (rad/px) over the
     stretch before the clean frame's stiff end stretch (:func:`_tip_span`),
-    from ``curve``'s spline; None where that stretch reaches back to the last
-    section joint or to the base."""
+    from ``curve``'s spline; None where that stretch cannot be read
+    (:func:`_trend_start`)."""
     span = _tip_span(tip_stiff_px(half_width), curve.length)
-    a, b = 1.0 - 2.0 * span, 1.0 - span
-    if a <= 0.0 or (curve.joints and curve.joints[-1] >= a):
+    a, b = _trend_start(span, curve.joints), 1.0 - span
+    if a is None:
         return None
     spline = angle_spline(curve.coef.size, curve.joints)
     phi = spline([a, b])[:, 1:] @ curve.coef
@@ -995,11 +1002,11 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
                                                  - tip_stiffness * tip_rough)))
             tip_hold = ""
             for hold_kind, extra in holds:
-                lhs_try = lhs_out.copy()
+                lhs_try = lhs_out + np.diag(damp)
                 lhs_try[:k, :k] += extra
-                step_out = np.linalg.solve(lhs_try + np.diag(damp),
-                                           np.concatenate([rhs_out[:k] - extra @ curve.coef,
-                                                           rhs_out[k:]]))
+                rhs_try = rhs_out.copy()
+                rhs_try[:k] -= extra @ curve.coef
+                step_out = np.linalg.solve(lhs_try, rhs_try)
                 # kept unless the edges tell against it: the rise of the residual
                 # sum of squares, in units of the fit's residual variance, is a
                 # chi-square of about one degree of freedom (a curvature step
@@ -1008,7 +1015,7 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
                 miss_out = (a_mat @ step_out - b_vec)[keep]
                 if miss_out @ miss_out - miss[keep] @ miss[keep] <= TIP_OUTPUT_CHI2 * var:
                     tip_correction = step_out[:k] - step_x[:k]
-                    system, step_rep = lhs_try + np.diag(damp), step_out
+                    system, step_rep = lhs_try, step_out
                     tip_hold = hold_kind
                     break
         if (last and not free_base and curve.joints and np.isfinite(var) and var > 0
@@ -1408,8 +1415,9 @@ def _tip_offset(image, smp, shift, look: TubeLook, window: float, step: float, *
     # how far short each line ends: added to that median, not to each line
     # first, which a tip tangent turned off the tube's amplified into a
     # runaway where the outer lines left the cap through its side)
-    to_apex = (look.cap or 0.0) * float(np.median(short[used]))
-    if relief:
+    if not relief:
+        to_apex = (look.cap or 0.0) * float(np.median(short[used]))
+    else:
         # the three strongest lines lie unevenly about the axis (over a
         # hollow tube's end, the lumen's end shows on some as strongly as the
         # cap), and the median of their shortfalls belonged to another line
