@@ -1203,12 +1203,18 @@ def _turns_between(n_coef: int, joints: tuple[float, ...], ends: tuple[float, ..
 def section_ratio(curve: Curve) -> float | None:
     """Mean curvature of a jointed curve's last section over the previous one's.
 
-    None without joints, or when the previous section turns less than
-    :data:`TIP_RATIO_MIN_TURN` (a ratio to a nearly straight section is noise).
+    None without joints, when the previous section turns less than
+    :data:`TIP_RATIO_MIN_TURN` (a ratio to a nearly straight section is noise),
+    or when the two bend opposite ways: both of the paper's models bend every
+    section the same way under one load, so a ratio <= 0 is no tube's (a
+    holder's mouth tracked as the tube's first stretch, hooked, its width
+    steps taken for joints: -0.7 and -2.8 on two independent over-curls,
+    whose tips over the holder were then held to it, 16-33 deg off).
     """
     if not curve.joints:
         return None
-    return _stretch_ratio(*_section_turns(curve.coef.size, curve.joints), curve.coef)
+    ratio = _stretch_ratio(*_section_turns(curve.coef.size, curve.joints), curve.coef)
+    return None if ratio is None or ratio <= 0.0 else ratio
 
 
 def widths_at(image: np.ndarray, curve: Curve, look: TubeLook, u: np.ndarray, *,

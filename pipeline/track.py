@@ -2049,9 +2049,7 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
     # a section the crossing hides keeps its curvature in step with the one before
     held = tip_ratio[1] if tip_ratio is not None and tip_ratio[0] == pred.joints else None
     # without that ratio, the last shape seen whole tells a hidden end's curvature
-    mode = (last_whole.coef if held is None and last_whole is not None
-            and (last_whole.joints, last_whole.coef.size) == (pred.joints, pred.coef.size)
-            else None)
+    mode = _whole_mode(last_whole, pred) if held is None else None
     # fast: refine the prediction inside the region it can occupy
     # the crop must hold where the tube can have moved: twice the last step's
     # tip motion; a fit that reaches the crop's edge anyway is redone on the frame
@@ -2207,6 +2205,20 @@ def _track_one(index, frame, look, history, base_hint, base_end, detection, sett
                       end_offset=r.end_offset, end_steps=r.end_steps,
                       told_offset=r.told_offset, end_profile=r.end_profile,
                       cap_shape=r.cap_shape, tip_hold=r.tip_hold)
+
+
+def _whole_mode(last_whole: Curve | None, pred: Curve) -> np.ndarray | None:
+    """The coefficients of ``last_whole``, the last shape seen whole, in the
+    spline of ``pred`` (the prediction), for the hold of an end the crossing
+    hides (``mode`` of :func:`pipeline.refine.refine`); None without one.
+
+    Rewritten where the joints changed since it was seen whole: the search for
+    kinks runs on crossing frames too, and a shape in another spline was
+    dropped, which left a hidden end to the roughness penalty alone (an
+    independent renderer's tube curled over its holder: 16-33 deg off)."""
+    if last_whole is None:
+        return None
+    return rewritten(last_whole, pred.joints, pred.coef.size).coef
 
 
 def _in_view_on(fit: Refined) -> bool:

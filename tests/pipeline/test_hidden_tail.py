@@ -66,6 +66,26 @@ def test_the_end_is_held_only_where_the_crossing_hides_it():
     assert refine._tail_hold(nearly_straight.coef, (), U, U > 0.8, HW_U) is None
 
 
+def test_the_last_whole_shape_is_carried_into_joints_found_since():
+    """Joints found after the tube was last seen whole (a kink search on a
+    crossing frame) change the prediction's spline: the last whole shape is
+    rewritten into it, and still holds the hidden end to its ratio."""
+    whole = _stepped(1 / 80, 1 / 250)
+    assert track._whole_mode(None, whole) is None
+    assert np.array_equal(track._whole_mode(whole, whole), whole.coef)
+    pred = joints.rewritten(_stepped(1.2 / 80, 1.2 / 250), (0.35, 0.4), 44)
+    mode = track._whole_mode(whole, pred)
+    assert mode.size == pred.coef.size
+    hold = refine._tail_hold(mode, pred.joints, U, U > 0.8, HW_U)
+    assert hold is not None
+    # the same tube bent further, in the new spline, keeps the ratio ...
+    other = joints.rewritten(_stepped(1.6 / 80, 1.6 / 250), pred.joints, pred.coef.size)
+    assert hold @ other.coef == pytest.approx(0.0, abs=2e-3 * 1.6 * LENGTH / 80)
+    # ... and a tip carried on at the curvature before it does not
+    arc = joints.rewritten(_stepped(1 / 80, 1 / 80), pred.joints, pred.coef.size)
+    assert abs(hold @ arc.coef) * (1 / LENGTH) == pytest.approx(1 / 80 - 1 / 250, rel=0.05)
+
+
 def test_of_fits_alike_the_one_from_the_prediction_is_kept():
     fits = [SimpleNamespace(residual_px=r, name=n)
             for r, n in ((0.020, "prediction"), (0.018, "last shape"), (0.019, "freed"))]
