@@ -308,6 +308,75 @@ def edge_pairs(profiles: np.ndarray, step: float, half_width, *, polarity: int,
         facing=np.where(take, -1.0, 1.0))
 
 
+#: :func:`side_edges` takes an edge only where no other step within its reach
+#: is this share as strong.
+SIDE_AMBIGUOUS = 0.5
+
+
+def side_edges(profiles: np.ndarray, step: float, half_width, side: np.ndarray, *,
+               polarity: int, reach: float, smooth_px: float = 0.8,
+               min_strength: float = 0.0,
+               max_strength: float = np.inf) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The tube's centre on every profile from one of its outer edges alone.
+
+    Where another layer of the tube lies over one side of a profile (a coil
+    running beside or over another), the pair cannot be trusted, but the edge
+    on the side it leaves clear is still the tube's own: the strongest inward
+    step of the tube's polarity within ``reach`` of where the expected
+    half-width puts it, moved back in by that half-width.
+
+    Parameters
+    ----------
+    profiles : (M, P) ndarray
+        Samples along the normals at offsets ``(j − (P−1)/2)·step`` px.
+    step : float
+        Sample spacing, px.
+    half_width : float or (M,) ndarray
+        Expected half-width of the tube at each profile, px.
+    side : (M,) ndarray of ±1
+        Which edge to take: +1 the one at +half-width (entering the tube
+        against the profile's direction), −1 the one at −half-width.
+    polarity : {+1, −1}
+        Sign of the intensity step entering the tube.
+    reach : float
+        The edge is looked for within ±reach px of ``side·half_width``.
+    smooth_px : float
+        Gaussian smoothing along the profile before differentiating, px.
+    min_strength, max_strength : float
+        Weakest and strongest acceptable inward step, intensity per px.
+
+    Returns
+    -------
+    centre, strength : (M,) ndarray
+        The centre's offset from the profile origin (px) and the edge's step.
+    valid : (M,) bool ndarray
+        An edge was found there, the only one within reach (no other step
+        :data:`SIDE_AMBIGUOUS` as strong).
+    """
+    m, p = profiles.shape
+    side = np.asarray(side, dtype=float)
+    hw = np.broadcast_to(np.asarray(half_width, dtype=float), (m,))
+    grad, bad = _inward_gradient(profiles, step, smooth_px)
+    grad[bad] = np.nan
+    # entering the tube from the −offset side steps by polarity·grad
+    inward = -side[:, None] * polarity * grad
+    pos = (np.arange(p) - (p - 1) / 2) * step
+    near = np.abs(pos[None, :] - (side * hw)[:, None]) <= reach
+    heights = np.where(near & _local_maxima(np.nan_to_num(inward, nan=-np.inf)),
+                       inward, -np.inf)
+    rows = np.arange(m)
+    idx = np.argmax(heights, axis=1)
+    strength = heights[rows, idx]
+    heights[rows, idx] = -np.inf
+    # (one step within reach: where two are, a line or an edge of something
+    # else lies by the tube's, and either may be the tube's)
+    valid = (np.isfinite(strength) & (strength > min_strength) & (strength <= max_strength)
+             & (heights.max(axis=1) < SIDE_AMBIGUOUS * strength))
+    at = (_parabolic(np.nan_to_num(inward, nan=-np.inf), idx[:, None])[:, 0]
+          - (p - 1) / 2) * step
+    return np.where(valid, at - side * hw, np.nan), strength, valid
+
+
 def _encloses(outer: Edges, inner: Edges) -> np.ndarray:
     """Where both pairs were found and ``outer``'s edges lie outside ``inner``'s."""
     return (outer.valid & inner.valid

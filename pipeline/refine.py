@@ -28,7 +28,15 @@ from .centreline import (
     knot_vector,
     resample,
 )
-from .profiles import FADED_COS, Edges, edge_pairs, end_edge, sample_lines, sample_strips
+from .profiles import (
+    FADED_COS,
+    Edges,
+    edge_pairs,
+    end_edge,
+    sample_lines,
+    sample_strips,
+    side_edges,
+)
 from .steps import two_level_fit
 
 #: Each edge profile is the mean of this many parallel lines, spread over
@@ -250,6 +258,24 @@ TIP_POOL_HW = 0.7
 #: The section before must turn at least this much (rad) for a ratio to it to
 #: mean anything.
 TIP_RATIO_MIN_TURN = np.radians(10.0)
+#: Where another layer of the tube (a coil, or the holder tracked as the
+#: tube's first stretch) lies over one side of a profile, running within this
+#: angle (deg) of it, the profile's edge on the other side still places the
+#: tube (:func:`pipeline.profiles.side_edges`; independent renderers' coils
+#: lying along each other over a quarter turn, the pairs left out there: p95
+#: 2.7 -> 1.8 deg, 15 -> 2.8 on two full turns whose coils touch) ...
+SIDE_PARALLEL_DEG = 30.0
+#: ... with this weight relative to an edge pair's (one edge, √2 its noise) ...
+SIDE_WEIGHT = 0.5
+#: ... where the edge is as strong as the tube's (from half to this many
+#: times the look's strength: a step much stronger is something else's) ...
+SIDE_STRONGEST = 2.5
+#: ... and not within this many half-widths of the end: the end stretch is
+#: where the fit is least held, and an edge a few tenths of a px off (the
+#: half-width learnt there, the cap closing in) turned the tip (3.5 deg on a
+#: tip reaching its base, own renderer, its pairs 0.25 px narrower there than
+#: the look's).
+SIDE_END_HW = 3.0
 
 
 @dataclass(frozen=True)
@@ -842,12 +868,15 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
                            smooth_px=look.smooth_px, facing=facing, directions=normals,
                            width_tol=width_tol, min_strength=min_strength)
         contact = np.zeros(idx.size, bool)
+        free = None
+        side_reach = min(window, 0.35 * hw) + 1.0
         if avoid_contact:
             # (the 2 px spare also holds the default strips' ±1 px)
-            contact = contact_mask(smp.z, idx, reach=hw * (2 + width_tol) + window + 2.0
-                                   + max(look.strip_half_px - STRIP_STEP_PX, 0.0),
-                                   gap=basis.u[1] * curve.length, normals=normals,
-                                   half_width=hw)
+            contact, free = contact_sides(
+                smp.z, smp.tangent, idx, reach=hw * (2 + width_tol) + window + 2.0
+                + max(look.strip_half_px - STRIP_STEP_PX, 0.0),
+                gap=basis.u[1] * curve.length, normals=normals, half_width=hw,
+                clear=2.0 * side_reach + look.smooth_px)
         dropped = contact.copy()
         if shown is None and look.polarity == 0:
             # a relief whose shear is not known yet: this frame's own edges may
@@ -883,6 +912,24 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
             weights[valid] = np.minimum(1.0, max(1.0, 3.0 * sig) / np.maximum(dev, 1e-9))
         a_rows = [rows * weights[:, None]]
         b_rows = [delta * weights]
+        # (not in a relief, whose two edges step alike: one alone is no side)
+        single = (contact & (free != 0) & (from_end >= SIDE_END_HW * hw)
+                  if free is not None and look.polarity != 0 else None)
+        if single is not None and single.any():
+            # the side a coil over the profile leaves clear still places the tube
+            at = np.flatnonzero(single)
+            c_one, _, ok = side_edges(profiles[at], step, hw_u[at], free[at].astype(float),
+                                      polarity=look.polarity, reach=side_reach,
+                                      smooth_px=look.smooth_px,
+                                      min_strength=max(min_strength, 0.5 * look.strength),
+                                      max_strength=SIDE_STRONGEST * look.strength)
+            at, c_one = at[ok], c_one[ok]
+            if at.size:
+                ref = float(np.median(delta[valid])) if valid.sum() >= 4 else 0.0
+                w_one = SIDE_WEIGHT * np.minimum(
+                    1.0, max(1.0, 3.0 * sig) / np.maximum(np.abs(c_one - ref), 1e-9))
+                a_rows.append(rows[at] * w_one[:, None])
+                b_rows.append(c_one * w_one)
         if look.end_step_px:
             zone = from_end < look.end_step_px
             if end_step_left_out(curve, look.end_step_px, look.end_step_offset):
@@ -1547,20 +1594,70 @@ def contact_mask(z: np.ndarray, idx: np.ndarray, *, reach: float, gap: float,
         The tube's half-width, px (with ``normals``).
     """
     if normals is not None:
-        # other points at most half a width (plus a stride) off the profile's line
-        stride = max(1, int(0.5 * half_width / gap))
-    else:
-        stride = max(1, int(reach / (3 * gap)))
+        return _parts_on_lines(z, idx, reach, gap, normals, half_width)[0].any(axis=1)
+    stride = max(1, int(reach / (3 * gap)))
     pts = z[::stride]
     pos = np.arange(0, z.size, stride)
-    d = pts[None, :] - z[idx][:, None]
-    along = np.abs(idx[:, None] - pos[None, :]) * gap
-    far = along > np.pi * reach
-    if normals is None:
-        return np.any((np.abs(d) < reach) & far, axis=1)
-    rel = d * np.conj(normals)[:, None]      # (across the profile, along the tube)
-    crosses = (np.abs(rel.real) < reach) & (np.abs(rel.imag) < half_width + stride * gap + 1.0)
-    return np.any(crosses & far, axis=1)
+    far = np.abs(idx[:, None] - pos[None, :]) * gap > np.pi * reach
+    return np.any((np.abs(pts[None, :] - z[idx][:, None]) < reach) & far, axis=1)
+
+
+def _parts_on_lines(z, idx, reach, gap, normals, half_width):
+    """For each profile (``idx``, ``normals``) and every other part of the
+    curve (every ``stride``-th point, as :func:`contact_mask`'s): whether its
+    tube (of ``half_width``) reaches the profile's line within ``reach`` px
+    along it; those points' offsets from the profile's point, complex
+    (across the profile, along the tube), px; and the stride."""
+    # other points at most half a width (plus a stride) off the profile's line
+    stride = max(1, int(0.5 * half_width / gap))
+    pts = z[::stride]
+    pos = np.arange(0, z.size, stride)
+    rel = (pts[None, :] - z[idx][:, None]) * np.conj(normals)[:, None]
+    far = np.abs(idx[:, None] - pos[None, :]) * gap > np.pi * reach
+    crosses = (far & (np.abs(rel.real) < reach)
+               & (np.abs(rel.imag) < half_width + stride * gap + 1.0))
+    return crosses, rel, stride
+
+
+def contact_sides(z: np.ndarray, tangent: np.ndarray, idx: np.ndarray, *, reach: float,
+                  gap: float, normals: np.ndarray, half_width: float,
+                  clear: float) -> tuple[np.ndarray, np.ndarray]:
+    """Which profiles another part of the curve reaches (as
+    :func:`contact_mask` with ``normals``), and which side of each such
+    profile it leaves clear.
+
+    Parameters
+    ----------
+    z, tangent : (Q,) complex ndarray
+        Curve points (grid spacing ``gap`` px) and their unit tangents.
+    idx : (M,) int ndarray
+        Grid indices of the profile points.
+    reach, gap, normals, half_width
+        As :func:`contact_mask`.
+    clear : float
+        How far (px) off the profile's point every other part must lie on
+        the one side for the other side to count as clear.
+
+    Returns
+    -------
+    contact : (M,) bool ndarray
+    free : (M,) ndarray of {−1, 0, +1}
+        The side (along the profile's normal) that every other part leaves
+        clear: they all lie on the other side, at least ``clear`` off, and run
+        within :data:`SIDE_PARALLEL_DEG` of the profile's own stretch (a
+        crossing at a steep angle lies over both edges); 0 where none is.
+    """
+    crosses, rel, stride = _parts_on_lines(z, idx, reach, gap, normals, half_width)
+    contact = crosses.any(axis=1)
+    # the angle between the other part and the profile's stretch
+    turn = tangent[::stride][None, :] * np.conj(tangent[idx])[:, None]
+    steep = (crosses & (np.abs(turn.imag) > np.sin(np.radians(SIDE_PARALLEL_DEG)))).any(axis=1)
+    above = (crosses & (rel.real > 0)).any(axis=1)
+    below = (crosses & (rel.real < 0)).any(axis=1)
+    nearest = np.where(crosses, np.abs(rel.real), np.inf).min(axis=1)
+    free = np.where(above & ~below, -1, np.where(below & ~above, 1, 0))
+    free[steep | (nearest < clear)] = 0
+    return contact, free
 
 
 def self_contact(curve: Curve, half_width: float) -> bool:

@@ -2,7 +2,14 @@ import numpy as np
 import pytest
 from scipy.special import erf
 
-from pipeline.profiles import edge_pairs, end_edge, gradient_noise, sample_lines, sample_strips
+from pipeline.profiles import (
+    edge_pairs,
+    end_edge,
+    gradient_noise,
+    sample_lines,
+    sample_strips,
+    side_edges,
+)
 
 
 def _profiles(centres, half_widths, polarity=-1, step=0.5, half=40.0, noise=0.0, seed=0,
@@ -50,6 +57,34 @@ def test_the_pair_nearest_the_prediction_wins_over_a_neighbouring_tube():
     prof, step = _profiles(np.array([2.0]), np.array([6.0]), extra_edge=26.0, half=45)
     e = edge_pairs(prof, step, 6.0, polarity=-1, window=20.0)
     assert e.valid[0] and abs(e.centre[0] - 2.0) < 0.05
+
+
+@pytest.mark.parametrize("polarity", [-1, 1])
+def test_one_edge_places_the_tube_where_another_layer_lies_over_its_other_side(polarity):
+    # a 12 px tube at +0.7 px, and another layer of it 9 px off on the + side
+    # (a coil lying half over it): the pair is gone, the − side's edge is not
+    off = np.arange(-30.0, 30.25, 0.25)
+    edge = 0.8
+
+    def body(c):
+        return 0.5 * (1 + erf((6.0 - np.abs(off - c)) / edge))
+
+    # (the other layer on top, hiding what lies under it)
+    top = body(9.7)
+    prof = (0.8 * (1 + polarity * 0.3 * body(0.7)) * (1 - top)
+            + 0.8 * (1 + polarity * 0.3) * top)[None, :]
+    centre, strength, valid = side_edges(prof, 0.25, 6.0, np.array([-1.0]),
+                                         polarity=polarity, reach=2.0)
+    assert valid[0] and strength[0] > 0
+    assert centre[0] == pytest.approx(0.7, abs=0.03)
+    # the covered side's edge lies under the other layer: it misplaces the tube
+    centre, _, valid = side_edges(prof, 0.25, 6.0, np.array([1.0]), polarity=polarity,
+                                  reach=2.0)
+    assert not (valid[0] and abs(centre[0] - 0.7) < 0.5)
+    # no edge of the tube's polarity within reach: none
+    _, _, valid = side_edges(prof, 0.25, 6.0, np.array([-1.0]), polarity=-polarity,
+                             reach=2.0, min_strength=1e-3)
+    assert not valid[0]
 
 
 def test_nan_samples_never_make_an_edge():
