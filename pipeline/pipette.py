@@ -269,7 +269,10 @@ def static_stretch(results: list[FrameTrack], half_width: float, at_least: float
         near = s <= min(still, s[-1])
         dist, _ = tree.query(np.c_[z[near].real, z[near].imag])
         off = dist > tol
-        still = min(still, float(s[near][np.argmax(off)]) if off.any() else float(s[near][-1]))
+        # (a frame that keeps all of it keeps it whole: its last point within
+        # reach lies up to a resampling step short, which over a long video's
+        # bent frames wore a 102 px stretch down to 53, a px a frame)
+        still = min(still, float(s[near][np.argmax(off)]) if off.any() else float(s[-1]))
         if still < at_least:
             break
     return still

@@ -177,6 +177,24 @@ def test_a_hinge_in_noisy_frames_is_not_spread_by_their_noise():
     assert spread <= pipette.HINGE_SPREAD_PX
 
 
+def test_the_stretch_that_stood_still_does_not_wear_down_over_many_frames():
+    """A holder of 100 px that stands still on 120 bent frames: every frame
+    keeps all of it, and so does their stretch (each frame's last point
+    within it lay up to a resampling step short, and the stretch came down
+    by that on every frame: an independent 150-frame video's 102 px to 53,
+    its holder then not cut, its base 93 px off)."""
+    # (each frame's length a little off the others', as tracked lengths are:
+    # its points along the stretch then lie off theirs)
+    many = [frame for k, turn in enumerate([0.0, *np.linspace(1.0, 3.0, 120)])
+            for frame in _clamped_tracks(100.0, [turn], tube=300.0 + 0.37 * (k % 7))]
+    many = pipette.static_stretch(many, 5.0)
+    # (the most bent frame sets how far past the holder the tube keeps its
+    # line: the same on three frames bent as far)
+    few = pipette.static_stretch(_clamped_tracks(100.0, [0.0, 1.0, 3.0]), 5.0)
+    assert many == pytest.approx(few, abs=0.5)
+    assert many >= 100.0
+
+
 def test_a_stiff_first_section_is_no_hinge():
     # the tube's own first 60 px, bending at 1/25 of the rest's curvature: it
     # seems to end earlier the more the tube bends
