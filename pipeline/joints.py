@@ -158,7 +158,11 @@ def _polish(smooth: Curve, idx, pts, keep, found: list[float],
         best = (np.inf, joints[i])
         for c in joints[i] + width_u * np.arange(-0.6, 0.61, 0.2):
             trial = sorted(joints[:i] + [float(c)] + joints[i + 1:] + list(keep))
-            if not 0 < c < 1 or np.any(np.diff([0.0, *trial, 1.0]) < 0.5 * width_u):
+            # (a width from either end, as the candidates are: polished up to
+            # half a width from the tip, a 9 px last section of an independent
+            # renderer's tube spun its end by 430 deg, the edges too few to hold it)
+            if (not width_u <= c <= 1.0 - width_u
+                    or np.any(np.diff([0.0, *trial, 1.0]) < 0.5 * width_u)):
                 continue
             rss = _midpoint_rss(rewritten(smooth, trial), idx, pts, iterations=2)
             best = min(best, (rss, float(c)))

@@ -319,6 +319,13 @@ OUTER_TOL = 0.12
 SHARED_EDGE_PX = 0.5
 SHARED_FRACTION = 0.6
 OUTER_STRENGTH = 0.7
+#: A pair encloses the one found where each of its edges lies this far (px)
+#: outside the found pair's (:func:`_concentric_outer`).
+CONCENTRIC_PX = 1.0
+#: ... at least this share as strong as the found pair (an air-filled lumen's
+#: walls step more strongly than the outer edges: 0.62 on an independent
+#: renderer's tube in water).
+CONCENTRIC_STRENGTH = 0.5
 #: How many times the first fit is carried on past its end while the tube's
 #: edges run on to it (:func:`_run_on`): each time by half its length. Once was
 #: not enough for a mask that stopped at a third of the tube (a faint middle
@@ -773,6 +780,36 @@ def _outer_pair(image, r: Refined, look: TubeLook) -> TubeLook | None:
     return replace(look, half_width=widths)
 
 
+def _concentric_outer(image, r: Refined, look: TubeLook) -> TubeLook | None:
+    """``look`` widened to a pair of the same polarity that encloses the pair
+    ``r`` found, a px or more outside it on both sides, along most of the
+    tube (:data:`SHARED_FRACTION` of its profiles, at one of
+    :data:`OUTER_SCALES`, at least :data:`CONCENTRIC_STRENGTH` as strong): a
+    lumen whose walls step the way the outer edges do (an air-filled lumen,
+    darker than the wall as the wall is than the water) taken for the tube.
+    It shares no edge with the outer pair (:func:`_outer_pair`). A holder
+    about the tube encloses it only over its first stretch. None where no
+    such pair shows."""
+    found = edges_at(image, r.curve, look, r.u, width_tol=0.2)
+    if found.valid.sum() < 8:
+        return None
+    left, right = found.centre - 0.5 * found.width, found.centre + 0.5 * found.width
+    best, best_share = None, SHARED_FRACTION
+    for scale in OUTER_SCALES:
+        wide = edges_at(image, r.curve, replace(look, half_width=look.half_width * scale),
+                        r.u, width_tol=OUTER_TOL)
+        around = (found.valid & wide.valid
+                  & (wide.centre - 0.5 * wide.width < left - CONCENTRIC_PX)
+                  & (wide.centre + 0.5 * wide.width > right + CONCENTRIC_PX)
+                  & (wide.strength >= CONCENTRIC_STRENGTH * found.strength))
+        share = around.sum() / found.valid.sum()
+        if share >= best_share:
+            best, best_share = np.median(wide.width[around]) / np.median(found.width[around]), share
+    if best is None:
+        return None
+    return replace(look, half_width=look.half_width * best)
+
+
 def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=None,
                settings: TrackSettings | None = None,
                joints: tuple[float, ...] | None = None):
@@ -857,6 +894,12 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
     # (the end's sideways step, if any, is told by the frames: see _EndStepVotes)
     look = TubeLook(polarity, widths, r.strength, end_step_px=None)
     if polarity != 0:
+        outer = _concentric_outer(image, r, look)
+        if outer is not None:
+            wide = refine(image, r.curve, outer, iterations=3, width_tol=OUTER_TOL,
+                          fit_length=False, tol_px=tol, tip_stiffness=0.0)
+            if wide.valid_fraction >= ENCLOSING_VALID * r.valid_fraction:
+                r, look = wide, replace(outer, strength=wide.strength)
         outer = _outer_pair(image, r, look)
         if outer is not None:
             # centred on the outer pair, so that the fits below (whose width

@@ -582,3 +582,29 @@ def test_a_thick_wall_s_lumen_edge_is_not_taken_for_the_tube_s_edge(angle_deg, a
     mid = z[(s > 0.2 * s[-1]) & (s < 0.8 * s[-1])]
     offset = np.real((mid - base) * np.conj(normal))
     assert np.all(np.abs(offset - 0.15) <= 0.3)
+
+
+#: Across a fifth independent renderer's tube in water with an air-filled lumen
+#: (30 px wide, its lumen 18 px wide and 1.2 px off-centre), 8-bit grey every px
+#: from 18 px on one side of its axis to 18 px on the other: the outer edges
+#: step down as the lumen's walls do, and those more strongly.
+AIR_LUMEN_PROFILE = (195, 188, 162, 125, 109, 130, 160, 174, 173, 150, 101, 45, 12, 2, 3, 15,
+                     49, 103, 152, 175, 169, 135, 80, 31, 8, 2, 6, 29, 77, 129, 147, 128, 109,
+                     124, 162, 187, 194)
+
+
+@pytest.mark.parametrize("angle_deg", [0.0, -25.0, 40.0])
+def test_a_lumen_stepping_as_the_outer_edges_do_is_not_taken_for_the_tube(angle_deg):
+    """The lumen's pair, stronger than the outer one and sharing no edge with
+    it, was taken for the tube: 18 px wide for 30, the tip put at the lumen's
+    end and the end stretch hooked. The pair enclosing it along the tube, of
+    the same polarity and over half as strong, is now taken."""
+    offsets = np.arange(-18.0, 19.0)
+    values = np.asarray(AIR_LUMEN_PROFILE, dtype=float) / 255.0
+    angle = np.radians(angle_deg)
+    base = complex(0.0, {0.0: -150.0, -25.0: -100.0, 40.0: -300.0}[angle_deg])
+    image = profile_image((360, 480), base, angle, 380.0, 0.0, offsets, values,
+                          background=195 / 255, noise=0.005)
+    _, look, _ = track.initialise(image)
+    # (the pair's edges lie outside the outer surface by a px, as on the frames)
+    assert look.mean_half_width == pytest.approx(15.8, abs=1.0)

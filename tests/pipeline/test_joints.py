@@ -40,6 +40,23 @@ def test_a_curvature_step_is_found_where_it_is(split):
     assert found[0] == pytest.approx(split, abs=0.2 * 2 * HALF_WIDTH / 600.0)
 
 
+def test_a_joint_stays_a_width_from_the_tip():
+    """A kink within the last width (a tip hooking on a lumen's end, say) may
+    be found at the last candidate, a width from the end, but is not polished
+    past it: a last section 9 px long, held by too few edges, spun an
+    independent renderer's tip by 430 deg."""
+    width_u = 2 * HALF_WIDTH / 600.0
+    z, _ = _two_arcs(split=1.0 - 0.3 * width_u, k2=1 / 10)
+    smooth = fit_to_polyline(z, 0.0, n_coef=14)
+    # (midpoints up to the end: the kink's pull reaches the last candidates)
+    u = np.linspace(0.02, 0.999, 300)
+    s = np.linspace(0.0, 600.0, z.size)
+    pts = np.interp(u * 600.0, s, z.real) + 1j * np.interp(u * 600.0, s, z.imag)
+    found = find_joints(smooth, u, pts, HALF_WIDTH)
+    assert found, "the kink's pull shows at the last candidates"
+    assert all(width_u - 1e-9 <= j <= 1.0 - width_u + 1e-9 for j in found), found
+
+
 @pytest.mark.parametrize("seed", range(5))
 def test_a_smooth_tube_gets_no_joint(seed):
     z, _ = _two_arcs(k2=1 / 90)  # one arc: the curvature does not step
