@@ -161,7 +161,7 @@ def _polish(smooth: Curve, idx, pts, keep, found: list[float],
             # (a width from either end, as the candidates are: polished up to
             # half a width from the tip, a 9 px last section of an independent
             # renderer's tube spun its end by 430 deg, the edges too few to hold it)
-            if (not width_u <= c <= 1.0 - width_u
+            if (not width_u <= c < 1.0 - width_u
                     or np.any(np.diff([0.0, *trial, 1.0]) < 0.5 * width_u)):
                 continue
             rss = _midpoint_rss(rewritten(smooth, trial), idx, pts, iterations=2)

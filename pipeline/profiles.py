@@ -348,7 +348,8 @@ def side_edges(profiles: np.ndarray, step: float, half_width, side: np.ndarray, 
     Returns
     -------
     centre, strength : (M,) ndarray
-        The centre's offset from the profile origin (px) and the edge's step.
+        The centre's offset from the profile origin (px; NaN where no edge
+        is valid) and the edge's step (−inf where no step lies within reach).
     valid : (M,) bool ndarray
         An edge was found there, the only one within reach (no other step
         :data:`SIDE_AMBIGUOUS` as strong).

@@ -267,8 +267,10 @@ TIP_RATIO_MIN_TURN = np.radians(10.0)
 SIDE_PARALLEL_DEG = 30.0
 #: ... with this weight relative to an edge pair's (one edge, √2 its noise) ...
 SIDE_WEIGHT = 0.5
-#: ... where the edge is as strong as the tube's (from half to this many
-#: times the look's strength: a step much stronger is something else's) ...
+#: ... where the edge is as strong as the tube's (from this share to
+#: SIDE_STRONGEST times the look's strength: a step much stronger is
+#: something else's) ...
+SIDE_WEAKEST = 0.5
 SIDE_STRONGEST = 2.5
 #: ... and not within this many half-widths of the end: the end stretch is
 #: where the fit is least held, and an edge a few tenths of a px off (the
@@ -921,7 +923,7 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
             c_one, _, ok = side_edges(profiles[at], step, hw_u[at], free[at].astype(float),
                                       polarity=look.polarity, reach=side_reach,
                                       smooth_px=look.smooth_px,
-                                      min_strength=max(min_strength, 0.5 * look.strength),
+                                      min_strength=SIDE_WEAKEST * look.strength,
                                       max_strength=SIDE_STRONGEST * look.strength)
             at, c_one = at[ok], c_one[ok]
             if at.size:
@@ -1252,16 +1254,22 @@ def section_ratio(curve: Curve) -> float | None:
 
     None without joints, when the previous section turns less than
     :data:`TIP_RATIO_MIN_TURN` (a ratio to a nearly straight section is noise),
-    or when the two bend opposite ways: both of the paper's models bend every
-    section the same way under one load, so a ratio <= 0 is no tube's (a
+    or when the last turns the other way by as much: both of the paper's
+    models bend every section the same way under one load, so such a ratio
+    is no tube's (a
     holder's mouth tracked as the tube's first stretch, hooked, its width
     steps taken for joints: -0.7 and -2.8 on two independent over-curls,
     whose tips over the holder were then held to it, 16-33 deg off).
     """
     if not curve.joints:
         return None
-    ratio = _stretch_ratio(*_section_turns(curve.coef.size, curve.joints), curve.coef)
-    return None if ratio is None or ratio <= 0.0 else ratio
+    turns, spans = _section_turns(curve.coef.size, curve.joints)
+    ratio = _stretch_ratio(turns, spans, curve.coef)
+    # (a nearly straight last section turns either way by noise: held to its
+    # small ratio, as before)
+    opposite = (ratio is not None and ratio < 0.0
+                and abs(turns[1] @ curve.coef) >= TIP_RATIO_MIN_TURN)
+    return None if opposite else ratio
 
 
 def widths_at(image: np.ndarray, curve: Curve, look: TubeLook, u: np.ndarray, *,
@@ -1603,11 +1611,32 @@ def contact_mask(z: np.ndarray, idx: np.ndarray, *, reach: float, gap: float,
 
 
 def _parts_on_lines(z, idx, reach, gap, normals, half_width):
-    """For each profile (``idx``, ``normals``) and every other part of the
-    curve (every ``stride``-th point, as :func:`contact_mask`'s): whether its
-    tube (of ``half_width``) reaches the profile's line within ``reach`` px
-    along it; those points' offsets from the profile's point, complex
-    (across the profile, along the tube), px; and the stride."""
+    """Which other parts of the curve reach each profile's line.
+
+    Parameters
+    ----------
+    z : (Q,) complex ndarray
+        Curve points, ``gap`` px apart.
+    idx : (M,) int ndarray
+        Grid indices of the profile points.
+    reach, gap : float
+        Reach along the profile, and the grid spacing, px.
+    normals : (M,) complex ndarray
+        The profiles' unit normals.
+    half_width : float
+        The tube's, px.
+
+    Returns
+    -------
+    crosses : (M, P) bool ndarray
+        For every ``stride``-th curve point farther along the curve than
+        half a turn of ``reach``: whether its tube reaches the profile's
+        line within ``reach`` px along it.
+    rel : (M, P) complex ndarray
+        Those points' offsets from the profile's point, px (real: across
+        the tube, along the profile; imaginary: along the tube).
+    stride : int
+    """
     # other points at most half a width (plus a stride) off the profile's line
     stride = max(1, int(0.5 * half_width / gap))
     pts = z[::stride]
@@ -1641,6 +1670,7 @@ def contact_sides(z: np.ndarray, tangent: np.ndarray, idx: np.ndarray, *, reach:
     Returns
     -------
     contact : (M,) bool ndarray
+        Whether another part of the curve reaches the profile.
     free : (M,) ndarray of {−1, 0, +1}
         The side (along the profile's normal) that every other part leaves
         clear: they all lie on the other side, at least ``clear`` off, and run
@@ -1649,7 +1679,7 @@ def contact_sides(z: np.ndarray, tangent: np.ndarray, idx: np.ndarray, *, reach:
     """
     crosses, rel, stride = _parts_on_lines(z, idx, reach, gap, normals, half_width)
     contact = crosses.any(axis=1)
-    # the angle between the other part and the profile's stretch
+    # (a part crossing at a steep angle lies over both of the profile's edges)
     turn = tangent[::stride][None, :] * np.conj(tangent[idx])[:, None]
     steep = (crosses & (np.abs(turn.imag) > np.sin(np.radians(SIDE_PARALLEL_DEG)))).any(axis=1)
     above = (crosses & (rel.real > 0)).any(axis=1)

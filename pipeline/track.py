@@ -81,7 +81,7 @@ from .joints import (
     width_steps,
 )
 from .plug import grows_with_bend
-from .profiles import gradient_noise
+from .profiles import gradient_noise, sample_lines
 from .refine import (
     END_STEP_ZONES_HW,
     MAD_TO_SD,
@@ -326,6 +326,9 @@ CONCENTRIC_PX = 1.0
 #: walls step more strongly than the outer edges: 0.62 on an independent
 #: renderer's tube in water).
 CONCENTRIC_STRENGTH = 0.5
+#: ... and with the band between them standing off the background by at least
+#: this share of the inside's furthest (see :func:`_wall_band`).
+CONCENTRIC_BAND = 0.05
 #: How many times the first fit is carried on past its end while the tube's
 #: edges run on to it (:func:`_run_on`): each time by half its length. Once was
 #: not enough for a mask that stopped at a third of the tube (a faint middle
@@ -784,12 +787,13 @@ def _concentric_outer(image, r: Refined, look: TubeLook) -> TubeLook | None:
     """``look`` widened to a pair of the same polarity that encloses the pair
     ``r`` found, a px or more outside it on both sides, along most of the
     tube (:data:`SHARED_FRACTION` of its profiles, at one of
-    :data:`OUTER_SCALES`, at least :data:`CONCENTRIC_STRENGTH` as strong): a
-    lumen whose walls step the way the outer edges do (an air-filled lumen,
+    :data:`OUTER_SCALES`, at least :data:`CONCENTRIC_STRENGTH` as strong),
+    with the band between the two pairs the tube's own (:func:`_wall_band`):
+    a lumen whose walls step the way the outer edges do (an air-filled lumen,
     darker than the wall as the wall is than the water) taken for the tube.
     It shares no edge with the outer pair (:func:`_outer_pair`). A holder
-    about the tube encloses it only over its first stretch. None where no
-    such pair shows."""
+    about the tube encloses it only over its first stretch; a fringe about
+    it leaves the background between. None where no such pair shows."""
     found = edges_at(image, r.curve, look, r.u, width_tol=0.2)
     if found.valid.sum() < 8:
         return None
@@ -802,12 +806,46 @@ def _concentric_outer(image, r: Refined, look: TubeLook) -> TubeLook | None:
                   & (wide.centre - 0.5 * wide.width < left - CONCENTRIC_PX)
                   & (wide.centre + 0.5 * wide.width > right + CONCENTRIC_PX)
                   & (wide.strength >= CONCENTRIC_STRENGTH * found.strength))
-        share = around.sum() / found.valid.sum()
-        if share >= best_share:
+        # (of all the profiles: where the pair found shows on part of the tube
+        # only, a holder about that part would pass for the tube's walls)
+        share = around.sum() / around.size
+        if share >= best_share and _wall_band(image, r, found, wide, around, look.polarity):
             best, best_share = np.median(wide.width[around]) / np.median(found.width[around]), share
     if best is None:
         return None
     return replace(look, half_width=look.half_width * best)
+
+
+def _wall_band(image, r: Refined, inner, outer, where: np.ndarray, polarity: int) -> bool:
+    """Whether the band between the pairs ``inner`` and ``outer`` (Edges at
+    ``r.u``, on the profiles ``where``) stands off the background beyond
+    ``outer`` the way the tube does (``polarity``), over three quarters of
+    it, by at least :data:`CONCENTRIC_BAND` of how far the inside of
+    ``inner`` stands off it: a tube's wall does (an air lumen's wall in
+    water: 0.1), the gap to a fringe or a ring about the tube does not."""
+    at = np.flatnonzero(where)[:: max(1, int(where.sum()) // 40)]
+    smp = evaluate(r.curve, basis_of(r.curve))
+    grid = np.clip(np.round(r.u[at] * (smp.z.size - 1)).astype(int), 0, smp.z.size - 1)
+    reach = float(np.max(outer.width[at])) / 2 + 6.0
+    offsets = np.arange(-reach, reach + 0.25, 0.5)
+    prof = sample_lines(image, smp.z[grid], smp.normal[grid], offsets)
+    band, back, core = [], [], []
+    for k, j in enumerate(at):
+        c = offsets - inner.centre[j]
+        o_half, i_half = 0.5 * outer.width[j], 0.5 * inner.width[j]
+        d = np.abs(offsets - outer.centre[j])
+        band.append(prof[k][(np.abs(c) > i_half + 1.0) & (d < o_half - 1.0)])
+        back.append(prof[k][(d > o_half + 2.0) & (d < o_half + 5.0)])
+        core.append(prof[k][np.abs(c) < i_half - 1.0])
+    band, back, core = (np.concatenate(v) for v in (band, back, core))
+    band, back, core = band[np.isfinite(band)], back[np.isfinite(back)], core[np.isfinite(core)]
+    if not (band.size and back.size and core.size):
+        return False
+    level = np.median(back)
+    deepest = np.max(polarity * (core - level))
+    # (its least tube-like quarter: a fringe's own band fills part of the gap)
+    return bool(deepest > 0 and np.quantile(polarity * (band - level), 0.25)
+                >= CONCENTRIC_BAND * deepest)
 
 
 def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=None,

@@ -2,9 +2,15 @@
 (:func:`pipeline.refine.contact_sides`): the side whose edge still places the
 tube where a coil runs beside or over it."""
 
-import numpy as np
+from dataclasses import replace
 
-from pipeline.refine import contact_mask, contact_sides
+import numpy as np
+from scipy.spatial import cKDTree
+
+from pipeline import refine as refine_module
+from pipeline.centreline import fit_to_polyline, resample
+from pipeline.refine import TubeLook, contact_mask, contact_sides, edges_at, refine
+from tests.pipeline.synthetic import axis_image
 
 HW = 6.0
 GAP = 0.5
@@ -75,3 +81,60 @@ def test_no_other_layer_no_contact():
     z, t = _polyline(("line", 60.0), ("arc", 40.0, 90.0))
     contact, free = _sides(z, t, np.arange(0, z.size, 10))
     assert not contact.any() and not free.any()
+
+
+#: The hairpin's tube's half-width, px.
+PIN_HW = 8.0
+
+
+def _hairpin_image(radius=1.1 * PIN_HW, run=200.0, step=0.05, base=40 - 100j):
+    """A dark tube out along +x, round a half turn of ``radius``, and back:
+    its two runs touch (2.2 half-widths apart). The frame, the axis points
+    and the curve through them."""
+    arc = np.pi * radius
+    s = np.arange(0.0, 2 * run + arc + step / 2, step)
+    kappa = np.where((s > run) & (s < run + arc), 1 / radius, 0.0)
+    phi = np.concatenate([[0.0], np.cumsum(0.5 * (kappa[1:] + kappa[:-1]) * np.diff(s))])
+    z = base + np.concatenate([[0j], np.cumsum(np.exp(1j * 0.5 * (phi[1:] + phi[:-1]))
+                                               * np.diff(s))])
+    img = axis_image((200, 320), z, s, phi, PIN_HW, noise=0.003)
+    return img, z, fit_to_polyline(z[::10], 0.0, n_coef=60)
+
+
+def _off(curve, z):
+    """RMS distance (px) of ``curve``'s points from the axis points ``z``."""
+    _, pts = resample(curve, 1.0)
+    d, _ = cKDTree(np.c_[z.real, z.imag]).query(np.c_[pts.real, pts.imag])
+    return float(np.sqrt(np.mean(d**2)))
+
+
+def test_touching_runs_are_placed_by_the_edges_they_leave_clear(monkeypatch):
+    """Along a hairpin whose runs touch, every pair is left out (the other
+    run lies within reach); the fit is held to the tube by
+    its clear edges alone (4 px RMS off at the start)."""
+    img, z, truth = _hairpin_image()
+    look = TubeLook(-1, np.full(9, PIN_HW), 0.0)
+    # (the look's strength: the pairs' where the runs lie apart, by the turn)
+    strength = float(np.median(edges_at(img, truth, look, np.linspace(0.47, 0.53, 9)).strength))
+    look = replace(look, strength=strength)
+    start = truth.with_params(truth.coef * 1.02, truth.length)
+    assert _off(start, z) > 3.0
+    fit = refine(img, start, look, iterations=10, avoid_contact=True, fit_length=False)
+    assert _off(fit.curve, z) < 0.3
+    monkeypatch.setattr(refine_module, "SIDE_WEIGHT", 0.0)
+    blind = refine(img, start, look, iterations=10, avoid_contact=True, fit_length=False)
+    assert _off(blind.curve, z) > 1.0
+
+
+def test_a_relief_or_a_frame_without_contact_takes_no_single_edge(monkeypatch):
+    img, z, truth = _hairpin_image()
+
+    def refused(*args, **kwargs):
+        raise AssertionError("an edge alone looked for")
+
+    monkeypatch.setattr(refine_module, "side_edges", refused)
+    # (no crossing handling asked: the pairs alone)
+    refine(img, truth, TubeLook(-1, np.full(9, PIN_HW), 0.05), iterations=2, fit_length=False)
+    # a relief's edges step alike: one alone tells no side
+    refine(img, truth, TubeLook(0, np.full(9, PIN_HW), 0.05), iterations=2, avoid_contact=True,
+           fit_length=False)

@@ -608,3 +608,20 @@ def test_a_lumen_stepping_as_the_outer_edges_do_is_not_taken_for_the_tube(angle_
     _, look, _ = track.initialise(image)
     # (the pair's edges lie outside the outer surface by a px, as on the frames)
     assert look.mean_half_width == pytest.approx(15.8, abs=1.0)
+
+
+@pytest.mark.parametrize("angle_deg", [0.0, 30.0])
+def test_a_fringe_about_the_tube_is_not_taken_for_its_walls(angle_deg):
+    """A dark ring about a dark tube (a defocus fringe, a coating's rim) is a
+    pair of its polarity enclosing the tube along its length, as a hollow
+    tube's outer pair encloses its lumen's; but the band between them is the
+    background, where a tube's wall is not (before: 12.7 px for 8)."""
+    offsets = np.arange(-20.0, 21.0)
+    d = np.abs(offsets)
+    values = np.where(d < 8, 0.8 * 0.65, np.where((d > 10.5) & (d < 13), 0.6, 0.8))
+    angle = np.radians(angle_deg)
+    base = complex(0.0, -150.0 if angle_deg == 0 else -300.0)
+    image = profile_image((360, 480), base, angle, 380.0, 0.0, offsets, values,
+                          background=0.8, noise=0.005)
+    _, look, _ = track.initialise(image)
+    assert look.mean_half_width == pytest.approx(7.5, abs=0.7)
