@@ -931,21 +931,18 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
                                    [(c[2], c[3]) for c in first_fits if c[2] is not r])
     # (the end's sideways step, if any, is told by the frames: see _EndStepVotes)
     look = TubeLook(polarity, widths, r.strength, end_step_px=None)
-    if polarity != 0:
-        outer = _concentric_outer(image, r, look)
-        if outer is not None:
-            wide = refine(image, r.curve, outer, iterations=3, width_tol=OUTER_TOL,
-                          fit_length=False, tol_px=tol, tip_stiffness=0.0)
-            if wide.valid_fraction >= ENCLOSING_VALID * r.valid_fraction:
-                r, look = wide, replace(outer, strength=wide.strength)
-        outer = _outer_pair(image, r, look)
-        if outer is not None:
-            # centred on the outer pair, so that the fits below (whose width
-            # tolerance takes both pairs in) start nearest it
-            wide = refine(image, r.curve, outer, iterations=3, width_tol=OUTER_TOL,
-                          fit_length=False, tol_px=tol, tip_stiffness=0.0)
-            if wide.valid_fraction >= ENCLOSING_VALID * r.valid_fraction:
-                r, look = wide, replace(outer, strength=wide.strength)
+    # (a lumen's pair enclosed by the outer one first, then a pair sharing one
+    # edge with the outer one)
+    for widened in ((_concentric_outer, _outer_pair) if polarity != 0 else ()):
+        outer = widened(image, r, look)
+        if outer is None:
+            continue
+        # centred on the outer pair, so that the fits below (whose width
+        # tolerance takes both pairs in) start nearest it
+        wide = refine(image, r.curve, outer, iterations=3, width_tol=OUTER_TOL,
+                      fit_length=False, tol_px=tol, tip_stiffness=0.0)
+        if wide.valid_fraction >= ENCLOSING_VALID * r.valid_fraction:
+            r, look = wide, replace(outer, strength=wide.strength)
     look = edge_scale(image, r.curve, look)
     # the base tangent is measured once, here, with a strong roughness penalty so
     # that φ(0) follows the whole tube rather than the few profiles by the base
