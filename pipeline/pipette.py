@@ -49,6 +49,7 @@ from scipy.ndimage import gaussian_filter1d, map_coordinates
 
 from .centreline import Curve, angle_coef, basis_of, cut_base, evaluate, make_basis, resample
 from .profiles import sample_lines
+from .segment import HOLDER_STEP, PIPETTE_STEP
 from .track import FrameTrack
 
 #: Frames bent at least this much (deg) away from the first frame's bend tell
@@ -67,6 +68,17 @@ MIN_WIDTHS = 2.0
 #: long before a tube 85 px wide, whose hinge the bent frames told to 3.5 px),
 #: and the profiles' step tells the holder where the motion cannot.
 STEP_WIDTHS = 1.0
+#: Where the start was found at a holder's width step (the tracked structure
+#: begins at its mouth), a holder's end found within this many tube widths of
+#: the tracked base is that mouth's own shading or end face, and nothing is
+#: cut: an independent renderer's capillary and tapered pipette, the start at
+#: their mouths, had 8 and 16 px of tube cut (then moved 10 px on along the
+#: axis), the bases 18.5 and 27 px into the tube on every frame. (A long
+#: oblique holder whose step the start found at its far end: cut 4.4 widths
+#: on, as it must be.) Nor is a stretch cut there that the motion alone told
+#: (no profile step): a tube whose first section does not bend stands as
+#: still as a holder (the same capillary's tube: its first 128 px, 30 %).
+AT_STEP_WIDTHS = 1.5
 #: The tube beyond it must keep at least this share of the length tracked. A
 #: holder may cross much of the frame before the tube: an independent
 #: renderer's pipette over half a 1280 px frame, before 90 px of tube (13 %);
@@ -963,6 +975,8 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
     # (a holder's end told by its profiles may lie nearer the tracked base than
     # ``least``: see STEP_WIDTHS)
     profiled = True
+    # (whether its profiles step at the holder's end, however it was found)
+    stepped = False
     if still >= least:
         s, change = profile_change(first_frame(), first, half_width,
                                    still + HOLDER_REACH_HW * half_width)
@@ -989,7 +1003,7 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
         # the hinge put it 1.5 px short of a pipette's end the profiles found)
         found = _profile_holder(ok, first_frame(), half_width, least)
         if found is not None and abs(found[0] - s) <= half_width:
-            s = found[0]
+            s, stepped = found[0], True
             told += (f"; its end placed where the profiles along it stepped by "
                      f"{found[1]:.0f}x their scatter")
     if told is None and moved:
@@ -997,7 +1011,7 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
         # it; a tube bent too little; a fit that wobbles inside the glass)
         found = _profile_holder(ok, first_frame(), half_width, least)
         if found is not None:
-            s, change, wobble = found
+            (s, change, wobble), stepped = found, True
             kept = ("the bent frames leave its line there as a tube clamped there would"
                     if wobble is None else f"that stretch kept its shape on the frames (to "
                     f"{wobble * px:.1f} px, its drift aside)")
@@ -1022,7 +1036,9 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
                 + (f", and its profiles stepped there by {change:.0f}x their scatter"
                    if placed else ""))
     if (told is None or (s < STEP_WIDTHS * 2 * half_width and not profiled)
-            or first.length - s < MIN_TUBE_SHARE * first.length):
+            or first.length - s < MIN_TUBE_SHARE * first.length
+            or (results[0].base_source.startswith((HOLDER_STEP, PIPETTE_STEP))
+                and (s < AT_STEP_WIDTHS * 2 * half_width or not (profiled or stepped)))):
         return [r.moved(r.stage_shift - origin) for r in results], None
     axis = holder_axis(first, s, half_width, first_frame())
     hook = _hook(first, s, axis, half_width)

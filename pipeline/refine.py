@@ -110,6 +110,16 @@ CAP_CLEAR_HW = 0.6
 #: is noisy (0.49 -> 0.60). 1.0: 89 and 56 / 22; 1.5: 91 but 38 / 34. The
 #: own 38 scenes (flat ends) are unchanged.
 CAP_OUTPUT_CLEAR_HW = 1.2
+#: The line a pipette's edge pairs give moves the base onto it by at most
+#: this many of the tube's half-widths (:func:`pipette_axis`); farther, the
+#: pairs behind the base are not the pipette's own: a tube seen through a
+#: thick glass capillary is refracted aside (an independent renderer's: 0.33
+#: of them, the base put 2.6 px off the tube's axis, and its first stretch
+#: hooked back to it); a base fitted beside a pipette's axis lay within 0.12
+#: of it on five renderers' first frames but for two whose "pipette" was a
+#: long oblique holder or a scratch (0.26-0.33: left where they were, their
+#: figures as before).
+PIPETTE_MAX_ASIDE_HW = 0.25
 #: The fraction of the profiles past a base step found that must show the
 #: tube's edge pair for the step to stand (:func:`locate_base`).
 BASE_STEP_VALID = 0.5
@@ -1723,12 +1733,14 @@ def pipette_axis(image: np.ndarray, curve: Curve, look: TubeLook, *,
         The axis's direction, rad (y up), pointing to the tube, and the point
         on it abreast of the curve's base, full-frame px (y up): the tube
         leaves a pipette on its axis. A wide holder's midline need not be the
-        tube's (a tube off-centre in its clamp): there the base is the curve's.
+        tube's (a tube off-centre in its clamp): there the base is the curve's;
+        so too where the line lies over :data:`PIPETTE_MAX_ASIDE_HW` off it.
     """
     hw = float(look.half_width[0])
     found = _holder_line(image, curve, look, origin, PIPETTE_RATIOS, 0.4 * hw)
     if found is not None:
         turn, aside = found
+        aside = aside if abs(aside) <= PIPETTE_MAX_ASIDE_HW * hw else 0.0
         return (float(curve.base_angle + turn),
                 complex(curve.base + 1j * np.exp(1j * curve.base_angle) * aside))
     # (searched wider: the tube may sit anywhere between a wide holder's edges)

@@ -648,3 +648,45 @@ def test_a_step_in_the_profiles_past_where_the_frames_hinge_is_no_holder():
     out, note = pipette.drop_holder(results, lambda: img, HW)
     assert note is None
     assert all(r.curve.base == p.curve.base for r, p in zip(out, results, strict=True))
+
+
+@pytest.mark.parametrize("found_at", [pipette.HOLDER_STEP, "image border (no pipette step seen)"])
+def test_a_stiff_first_section_past_a_mouth_the_start_found_is_not_cut(found_at):
+    # the start found the holder's width step: the tracked base is at its mouth,
+    # and the tube's first 60 px (a stiff section) stand still while the rest
+    # bends, as a clamped tube's would; its profiles do not step there (the
+    # tube's own look). Only a start that did not see the holder cuts it
+    # (an independent renderer's capillary: its tube's straight first 30 %
+    # taken for a holder, the base 128 px into the tube)
+    from dataclasses import replace as swap
+
+    base = 100 - 240j
+    img = tube_image((480, 640), base, 0.0, 360.0, 1e-12, HW, noise=0.005,
+                     pipette_half_width=2.0 * HW)
+    results = [swap(r, curve=swap(r.curve, base=base), base_source=found_at)
+               for r in _clamped_tracks(60.0, [0.0, 0.5, 1.0, 2.0, 3.0], noise=1e-3)]
+    out, note = pipette.drop_holder(results, lambda: img, HW)
+    if found_at == pipette.HOLDER_STEP:
+        assert note is None
+        assert all(r.curve.base == base and r.curve.length == 360.0 for r in out)
+    else:
+        assert note is not None and "as a tube clamped there would" in note, note
+        assert all(abs(r.curve.base - (base + 60)) < 2.0 for r in out)
+
+
+def test_a_holder_s_end_within_a_width_and_a_half_of_a_start_at_its_mouth_is_not_cut():
+    # the profiles step 10 px past the tracked base (a dark band across the
+    # tube: the glass's end face shading it), which a start at the holder's
+    # width step already put at the mouth: nothing is cut (an independent
+    # renderer's tapered pipette: 16 px cut, the base 27 px into the tube)
+    from dataclasses import replace as swap
+
+    base = 100 - 240j
+    img = tube_image((480, 640), base, 0.0, 360.0, 1e-12, HW, noise=0.005,
+                     pipette_half_width=2.0 * HW)
+    img[:, 100:110] *= 0.6
+    results = [swap(r, curve=swap(r.curve, base=base), base_source=pipette.HOLDER_STEP)
+               for r in _clamped_tracks(10.0, [0.0, 0.5, 1.0, 2.0], noise=1e-3)]
+    out, note = pipette.drop_holder(results, lambda: img, HW)
+    assert note is None
+    assert all(r.curve.base == base for r in out)

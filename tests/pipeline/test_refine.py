@@ -385,6 +385,15 @@ def test_the_pipette_s_axis_is_the_base_tangent(polarity):
         direction, on_axis = pipette_axis(img, curve, look)
         assert abs(np.degrees(direction - angle)) < 0.05
         assert abs(on_axis - base) < 0.1
+    # pairs behind the base on a line 4 px (a third of a half-width) aside of the
+    # tube's: not its pipette's (a tube refracted aside inside a thick glass):
+    # their direction is taken, the base stays on the tube
+    aside_img = tube_image(SHAPE, base, angle, 300.0, kappa, hw, polarity=polarity, noise=0.01,
+                           pipette_half_width=0.6 * hw, pipette_offset=4.0)
+    curve = fit_to_polyline(z, angle, n_coef=12)
+    direction, on_axis = pipette_axis(aside_img, curve, look)
+    assert abs(np.degrees(direction - angle)) < 0.05
+    assert on_axis == curve.base
     # no pipette in view: no axis
     bare = tube_image(SHAPE, base, angle, 300.0, kappa, hw, polarity=polarity, noise=0.01)
     assert pipette_axis(bare, fit_to_polyline(z, angle, n_coef=12), look) is None
