@@ -1492,7 +1492,8 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
             pending, restaged = _staged(pending, path)
             base, turn = votes.settled(history, followed(), path)
             base = base if base_hint is None else None
-            turn = _turn_past_holder(pending, history, base, turn, look.mean_half_width)
+            turn = _turn_past_holder(pending, history, base, turn, look.mean_half_width,
+                                     look, settings)
             if base is not None or turn:
                 history = [_moved_base(h, None if base is None else base + followed(), turn,
                                        look.mean_half_width)
@@ -1920,7 +1921,8 @@ def _cut_at(curve: Curve, base: complex) -> tuple[float, float]:
 
 
 def _turn_past_holder(pending, history: list[Curve], base: complex | None, turn: float,
-                      half_width: float) -> float:
+                      half_width: float, look: TubeLook | None = None,
+                      settings: TrackSettings | None = None) -> float:
     """The base tangent's turn (rad) once the base is settled at ``base``
     (px, where the stage stood on the first frame; None: not moved): ``turn``
     (the first frames' votes), unless the base moved forward, along the
@@ -1932,16 +1934,39 @@ def _turn_past_holder(pending, history: list[Curve], base: complex | None, turn:
     The votes were measured on fits from the old base, whose first stretch
     lay in the holder (a glass wider than the tube, which the first frame's
     skeleton ran into at a slant: φ(0) 15° off the glass's axis), and
-    the spline carries that turn on past the new base."""
+    the spline carries that turn on past the new base.
+
+    With ``look`` (and ``settings``), each of those tangents is measured
+    again from the new base (:func:`_base_tangent_fit`: φ(0) free under the
+    strong roughness penalty, on the frame's curve cut there), where that
+    fit passes the checks: the curves' own tangent there still carries the
+    hook they made into the holder (a 40 px tube whose capillary's first
+    36 px were cut: the bend 4.8 deg off on every frame)."""
     if base is None or not history:
         return turn
     ref = history[-1]
+    held = [(r, image) for r, image in pending if r.ok]
     cuts = [(abs(r.bend_angle_rad), *_cut_at(r.tracked, base + r.stage_shift))
-            for r, _ in pending if r.ok]
+            for r, _ in held]
     if not cuts or np.median([s for _, s, _ in cuts]) <= half_width:
         return turn
-    little = [phi for bend, _, phi in cuts if bend <= np.radians(BASE_ANGLE_MAX_BEND_DEG)]
-    phis = np.asarray(little or [phi for _, _, phi in cuts])
+    little = [k for k, (bend, _, _) in enumerate(cuts)
+              if bend <= np.radians(BASE_ANGLE_MAX_BEND_DEG)] or list(range(len(cuts)))
+    phis = np.asarray([cuts[k][2] for k in little])
+    if look is not None and all(held[k][1] is not None for k in little):
+        tol = (settings or TrackSettings()).tol_px
+        again = []
+        for k in little:
+            (r, image), (_, s, phi) = held[k], cuts[k]
+            if s >= r.tracked.length - 4.0 * half_width:
+                continue
+            cut = cut_base(r.tracked, s, phi)
+            fit = refine(image, cut, look, iterations=6, free_base=True,
+                         smoothing=BASE_SMOOTHING, tol_px=tol)
+            if _good(fit, look):
+                again.append(fit.curve.base_angle)
+        if again:
+            phis = np.asarray(again)
     return float(np.median(phis)) - ref.base_angle
 
 

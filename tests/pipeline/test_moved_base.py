@@ -87,3 +87,33 @@ def test_a_short_move_slides_the_curve_a_long_one_cuts_it():
     assert slid.length == pytest.approx(curve.length - 3.0)
     cut = _moved_base(curve, curve.base + 29.0 * axis, slide_px=8.0)
     assert abs(tip_point(cut) - tip_point(curve)) < 1.0
+
+
+def test_a_base_settled_past_a_hooked_start_is_measured_again_on_the_frames():
+    from pipeline.refine import TubeLook
+    from pipeline.track import FrameTrack, TrackSettings, _turn_past_holder
+    from tests.pipeline.synthetic import tube_image
+
+    # the tracked structure's first 40 px turn from 65 to 30 deg (the skeleton
+    # hooked into a wide glass), then it runs straight; the votes put the base
+    # 29 px along the axis, at the glass's mouth, where the tube in the frames
+    # leaves along 30 deg: the curves' own tangent there (43 deg) still
+    # carries the hook, the fit from there (its base tangent free) does not
+    s = np.linspace(0.0, 420.0, 4201)
+    phi = np.radians(np.where(s < 40, 65 - 35 * s / 40, 30.0))
+    z = 100 - 380j + np.concatenate([[0], np.cumsum(np.diff(s) * np.exp(1j * phi[1:]))])
+    curve = fit_to_polyline(z, np.radians(65.0), n_coef=24)
+    axis = np.exp(1j * curve.base_angle)
+    base = curve.base + 29.0 * axis
+    _, pts = resample(curve, 0.25)
+    mouth = pts[int(np.argmax(np.real((pts - curve.base) * np.conj(axis)) >= 29.0))]
+    img = tube_image((480, 640), mouth, np.radians(30.0), 380.0, 1e-12, 8.0, noise=0.005)
+    look = TubeLook(-1, np.full(9, 8.0), 0.05)
+    held = [(FrameTrack(k, "ok", curve, "fast"), img.astype(np.float32)) for k in range(3)]
+    old = _turn_past_holder(held, [curve], base, 0.0, half_width=8.0)
+    new = _turn_past_holder(held, [curve], base, 0.0, 8.0, look, TrackSettings())
+    assert abs(np.degrees(curve.base_angle + old) - 30.0) > 5.0
+    assert np.degrees(curve.base_angle + new) == pytest.approx(30.0, abs=0.5)
+    # a frame whose fit from there fails the checks keeps the curves' tangent
+    blank = [(r, np.full_like(image, 0.5)) for r, image in held]
+    assert _turn_past_holder(blank, [curve], base, 0.0, 8.0, look) == pytest.approx(old)
