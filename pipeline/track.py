@@ -111,6 +111,7 @@ from .segment import (
     PIPETTE_STEP,
     base_at_edge,
     detect,
+    edge_behind,
     slanted_cut,
 )
 
@@ -1731,13 +1732,31 @@ def _lean_from_edge(curve: Curve, half_width: float, shape) -> float:
     carrying it back did more harm than good (an independent renderer's
     tube 2.7 px from the edge: a median 0.12 -> 0.26 deg)."""
     d = base_at_edge(curve.base, curve.base_angle, half_width, shape)
-    if d is None or d < half_width or curve.length <= 2.0 * half_width:
+    if d is None or d < half_width:
+        return 0.0
+    return _lean_back(curve, half_width, d)
+
+
+def _lean_back(curve: Curve, half_width: float, distance: float) -> float:
+    """How far (rad) ``curve``'s tangent turns over ``distance`` px back from
+    its base, at its curvature over its first two half-widths (0 for a curve
+    under two half-widths long)."""
+    if curve.length <= 2.0 * half_width or not np.isfinite(distance):
         return 0.0
     basis = basis_of(curve)
     smp = evaluate(curve, basis)
     reach = 2.0 * half_width
     phi = float(np.interp(reach, basis.u * curve.length, smp.phi))
-    return (phi - curve.base_angle) / reach * d
+    return (phi - curve.base_angle) / reach * distance
+
+
+#: A tube entering from the frame's edge has its base tangent voted on from
+#: fits that start this many of its half-widths in from its first whole
+#: profile (and carried back to the edge, :func:`_lean_back`): the profiles
+#: next to an oblique border pulled the base tangent of a straight tube 0.5
+#: deg off (an independent renderer's tube entering at 35 deg to the edge
+#: near a corner: 55.5 deg for 55.0; from 10-30 px in, 55.0-55.1).
+EDGE_SKIP_HW = 2.0
 
 
 @dataclass
@@ -1770,13 +1789,27 @@ class _BaseVotes:
         if axis is not None:
             self.turns.append((0.0, axis[0] - curve.base_angle))
             return
-        fit = refine(image, curve, look, iterations=6, free_base=True,
+        hw = look.mean_half_width
+        # (a slanted entry only: there the first whole profile lies a
+        # half-width or more from the edge, and the profiles next to it sit
+        # beside the edge on one side)
+        at = base_at_edge(curve.base, curve.base_angle, hw, image.shape[:2])
+        skip = EDGE_SKIP_HW * hw if self.from_edge and at is not None and at >= hw else 0.0
+        start = cut_base(curve, skip) if skip and curve.length > 8.0 * skip else curve
+        fit = refine(image, start, look, iterations=6, free_base=True,
                      smoothing=BASE_SMOOTHING, tol_px=settings.tol_px)
         if _good(fit, look):
-            phi = fit.curve.base_angle - (_lean_from_edge(fit.curve, look.mean_half_width,
-                                                          image.shape[:2])
-                                          if self.from_edge else 0.0)
-            self.turns.append((abs(curve.coef[-1]), phi - curve.base_angle))
+            if start is not curve:
+                # carried back from there to the edge, as it turns there
+                lean = _lean_back(fit.curve, hw, edge_behind(fit.curve.base,
+                                                             fit.curve.base_angle,
+                                                             image.shape[:2])[0])
+            elif self.from_edge:
+                lean = _lean_from_edge(fit.curve, hw, image.shape[:2])
+            else:
+                lean = 0.0
+            self.turns.append((abs(curve.coef[-1]), fit.curve.base_angle - lean
+                               - curve.base_angle))
 
     def settled(self, history: list[Curve], stage: complex = 0j,
                 path: dict[int, complex] | None = None) -> tuple[complex | None, float]:

@@ -254,3 +254,37 @@ def test_a_tangent_is_carried_back_to_the_edge_only_from_a_slanted_entry():
     assert _lean_from_edge(arc(20.0), 8.0, (480, 640)) == pytest.approx(kappa * 20.0, rel=0.05)
     assert _lean_from_edge(arc(4.0), 8.0, (480, 640)) == 0.0
     assert _lean_from_edge(arc(200.0), 8.0, (480, 640)) == 0.0
+
+
+@pytest.mark.parametrize("bend", [0.0, 0.001])
+def test_a_slanted_entry_s_base_tangent_is_voted_on_from_past_the_edge_s_profiles(
+        monkeypatch, bend):
+    """A tube entering the left border at 55 deg (the first whole profile 11
+    px in): the base tangent voted on is fitted from two half-widths past it
+    and carried back to the edge; fitted from the first whole profile, the
+    profiles beside the oblique edge pulled it 0.26 deg off (an independent
+    renderer's tube near a corner: 0.5 deg, the median bend 0.66 deg off)."""
+    from pipeline import track as T
+    from tests.pipeline.synthetic import tube_image
+
+    angle, hw = np.radians(55.0), 7.0
+    at_edge = complex(-0.5, -400.0)
+    start = at_edge - 40 * np.exp(1j * angle)
+    # (the arc's tangent where it crosses the edge: 55 deg, whatever it bends)
+    img = tube_image((480, 640), start, angle - 40 * bend, 440.0, bend + 1e-12, hw,
+                     noise=0.01).astype(np.float32)
+    # the tube's tangent where its axis crosses the edge (col -0.5)
+    s = np.linspace(0.0, 80.0, 80001)
+    x = start.real + np.cumsum(np.cos(angle - 40 * bend + bend * s)) * (s[1] - s[0])
+    truth = np.degrees(angle - 40 * bend + bend * s[np.argmax(x >= -0.5)])
+    r, look, source = T.initialise(img)
+    assert source.startswith(T.BORDER_BASE)
+
+    def voted():
+        votes = T._BaseVotes(from_edge=True)
+        votes.add(img, r.curve, look, T.TrackSettings())
+        return np.degrees(r.curve.base_angle + votes.turns[0][1])
+
+    assert voted() == pytest.approx(truth, abs=0.1)
+    monkeypatch.setattr(T, "EDGE_SKIP_HW", 0.0)
+    assert abs(voted() - truth) > 0.2
