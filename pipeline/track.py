@@ -1493,15 +1493,16 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
             pending, restaged = _staged(pending, path)
             base, turn = votes.settled(history, followed(), path)
             base = base if base_hint is None else None
-            turn = _turn_past_holder(pending, history, base, turn, look.mean_half_width,
-                                     look, settings)
+            turn, aside = _turn_past_holder(pending, history, base, turn,
+                                            look.mean_half_width, look, settings)
             if base is not None or turn:
                 history = [_moved_base(h, None if base is None else base + followed(), turn,
-                                       look.mean_half_width)
+                                       look.mean_half_width, aside=aside)
                            for h in history]
                 if base_hint is None:
                     held_base = _base_col_row(history[-1])
-            done, pending = _refitted(pending, base, turn, look, settings, restaged), None
+            done, pending = _refitted(pending, base, turn, look, settings, restaged,
+                                      aside), None
         else:
             done = [result]
         for r in done:
@@ -1909,7 +1910,7 @@ def _on_stage(r: FrameTrack, shift: complex) -> FrameTrack:
 
 
 def _moved_base(curve: Curve, base: complex | None, turn: float = 0.0,
-                slide_px: float = 0.0) -> Curve:
+                slide_px: float = 0.0, aside: complex = 0j) -> Curve:
     """``curve`` with its base moved along its base axis to abreast of
     ``base`` and its base tangent turned by ``turn`` rad (the shape past the
     first spline span kept: B_0 = 1 − Σ B_k, so φ(0) + d with every other
@@ -1934,8 +1935,9 @@ def _moved_base(curve: Curve, base: complex | None, turn: float = 0.0,
     if shift > 0:
         shift = _cut_at(curve, base)[0]
     # (the base tangent as before, turned: the votes measured it against that)
-    return cut_base(curve, min(shift, curve.length - 2.0), curve.base_angle + turn,
-                    curve.joints)
+    cut = cut_base(curve, min(shift, curve.length - 2.0), curve.base_angle + turn,
+                   curve.joints)
+    return replace(cut, base=cut.base + aside) if aside else cut
 
 
 def _cut_at(curve: Curve, base: complex) -> tuple[float, float]:
@@ -1955,7 +1957,7 @@ def _cut_at(curve: Curve, base: complex) -> tuple[float, float]:
 
 def _turn_past_holder(pending, history: list[Curve], base: complex | None, turn: float,
                       half_width: float, look: TubeLook | None = None,
-                      settings: TrackSettings | None = None) -> float:
+                      settings: TrackSettings | None = None) -> tuple[float, complex]:
     """The base tangent's turn (rad) once the base is settled at ``base``
     (px, where the stage stood on the first frame; None: not moved): ``turn``
     (the first frames' votes), unless the base moved forward, along the
@@ -1974,21 +1976,29 @@ def _turn_past_holder(pending, history: list[Curve], base: complex | None, turn:
     strong roughness penalty, on the frame's curve cut there), where that
     fit passes the checks: the curves' own tangent there still carries the
     hook they made into the holder (a 40 px tube whose capillary's first
-    36 px were cut: the bend 4.8 deg off on every frame)."""
+    36 px were cut: the bend 4.8 deg off on every frame). Those fits' base
+    also moves sideways onto the tube: the median of how far is returned
+    too (px; 0 otherwise), for the base to follow (the same tube's base
+    had stayed 2.8 px aside of its axis, on the hooked curve).
+
+    Returns
+    -------
+    (turn, aside)
+        rad, and px (y up)."""
     if base is None or not history:
-        return turn
+        return turn, 0j
     ref = history[-1]
     held = [(r, image) for r, image in pending if r.ok]
     cuts = [(abs(r.bend_angle_rad), *_cut_at(r.tracked, base + r.stage_shift))
             for r, _ in held]
     if not cuts or np.median([s for _, s, _ in cuts]) <= half_width:
-        return turn
+        return turn, 0j
     little = [k for k, (bend, _, _) in enumerate(cuts)
               if bend <= np.radians(BASE_ANGLE_MAX_BEND_DEG)] or list(range(len(cuts)))
     phis = np.asarray([cuts[k][2] for k in little])
     if look is not None and all(held[k][1] is not None for k in little):
         tol = (settings or TrackSettings()).tol_px
-        again = []
+        again, asides = [], []
         for k in little:
             (r, image), (_, s, phi) = held[k], cuts[k]
             if s >= r.tracked.length - 4.0 * half_width:
@@ -1997,14 +2007,20 @@ def _turn_past_holder(pending, history: list[Curve], base: complex | None, turn:
             fit = refine(image, cut, look, iterations=6, free_base=True,
                          smoothing=BASE_SMOOTHING, tol_px=tol)
             if _good(fit, look):
-                again.append(fit.curve.base_angle)
+                # (the holder's axis where it shows, as the votes take it: a
+                # fit to a bent tube leans into the bend)
+                axis = pipette_axis(image, fit.curve, look)
+                again.append(fit.curve.base_angle if axis is None else axis[0])
+                asides.append(locate_base(image, fit.curve, look).base - cut.base)
         if again:
-            phis = np.asarray(again)
-    return float(np.median(phis)) - ref.base_angle
+            aside = complex(np.median(np.real(asides)), np.median(np.imag(asides)))
+            return float(np.median(again)) - ref.base_angle, aside
+    return float(np.median(phis)) - ref.base_angle, 0j
 
 
 def _refitted(pending, base: complex | None, turn: float, look: TubeLook | None,
-              settings: TrackSettings, restaged: dict | None = None) -> list[FrameTrack]:
+              settings: TrackSettings, restaged: dict | None = None,
+              aside: complex = 0j) -> list[FrameTrack]:
     """The held-back results, each measured frame refitted from its base moved
     to ``base`` (where the stage stood on the first frame: each frame's own
     stage shift is added) and its base tangent turned by ``turn``, to its end's
@@ -2028,7 +2044,8 @@ def _refitted(pending, base: complex | None, turn: float, look: TubeLook | None,
             out.append(result)
             continue
         moved = (_moved_base(result.tracked, None if base is None else base + result.stage_shift,
-                             turn, look.mean_half_width) if moves else result.tracked)
+                             turn, look.mean_half_width, aside=aside)
+                 if moves else result.tracked)
         if result.base_source and moves:
             shift = result.tracked.length - moved.length
             said = ([f"moved {abs(shift):.1f} px " + ("towards the tip" if shift > 0 else

@@ -62,8 +62,9 @@ def test_a_base_settled_past_a_hooked_start_takes_the_tube_s_tangent_there():
     # 35 deg (its first 40 px turn from 65): the votes' own turn, measured on
     # fits from the old base, is not the tube's
     base = curve.base + 29.0 * axis
-    turn = _turn_past_holder(_held_back([curve, curve]), [curve], base, np.radians(0.2),
-                             half_width=8.0)
+    turn, aside = _turn_past_holder(_held_back([curve, curve]), [curve], base,
+                                    np.radians(0.2), half_width=8.0)
+    assert aside == 0j  # (no frames kept to measure it again on)
     _, z = resample(curve, 0.25)
     at = int(np.argmax(np.real((z - curve.base) * np.conj(axis)) >= 29.0))
     there = np.angle(z[at + 1] - z[at])
@@ -72,10 +73,10 @@ def test_a_base_settled_past_a_hooked_start_takes_the_tube_s_tangent_there():
     # a base moved by less than a half-width keeps the votes' turn
     near = curve.base + 5.0 * axis
     assert _turn_past_holder(_held_back([curve]), [curve], near, np.radians(0.2),
-                             half_width=8.0) == np.radians(0.2)
+                             half_width=8.0) == (np.radians(0.2), 0j)
     # and so does one not moved at all
     assert _turn_past_holder(_held_back([curve]), [curve], None, np.radians(0.2),
-                             half_width=8.0) == np.radians(0.2)
+                             half_width=8.0) == (np.radians(0.2), 0j)
 
 
 def test_a_short_move_slides_the_curve_a_long_one_cuts_it():
@@ -89,6 +90,15 @@ def test_a_short_move_slides_the_curve_a_long_one_cuts_it():
     assert abs(tip_point(cut) - tip_point(curve)) < 1.0
 
 
+def base_on(curve, base):
+    """The point of ``curve`` where it first gets as far along its base axis
+    as ``base`` (where the base is cut)."""
+    from pipeline.centreline import cut_base
+    from pipeline.track import _cut_at
+
+    return cut_base(curve, _cut_at(curve, base)[0]).base
+
+
 def test_a_base_settled_past_a_hooked_start_is_measured_again_on_the_frames():
     from pipeline.refine import TubeLook
     from pipeline.track import FrameTrack, TrackSettings, _turn_past_holder
@@ -96,7 +106,7 @@ def test_a_base_settled_past_a_hooked_start_is_measured_again_on_the_frames():
 
     # the tracked structure's first 40 px turn from 65 to 30 deg (the skeleton
     # hooked into a wide glass), then it runs straight; the votes put the base
-    # 29 px along the axis, at the glass's mouth, where the tube in the frames
+    # 29 px along the axis, near the glass's mouth, where the tube in the frames
     # leaves along 30 deg: the curves' own tangent there (43 deg) still
     # carries the hook, the fit from there (its base tangent free) does not
     s = np.linspace(0.0, 420.0, 4201)
@@ -106,14 +116,21 @@ def test_a_base_settled_past_a_hooked_start_is_measured_again_on_the_frames():
     axis = np.exp(1j * curve.base_angle)
     base = curve.base + 29.0 * axis
     _, pts = resample(curve, 0.25)
-    mouth = pts[int(np.argmax(np.real((pts - curve.base) * np.conj(axis)) >= 29.0))]
+    # (the tube in the frames begins 6 px on from there and 2.5 px aside of
+    # the hooked curve)
+    ahead = np.exp(1j * np.radians(30.0))
+    mouth = (pts[int(np.argmax(np.real((pts - curve.base) * np.conj(axis)) >= 29.0))]
+             + (6.0 + 2.5j) * ahead)
     img = tube_image((480, 640), mouth, np.radians(30.0), 380.0, 1e-12, 8.0, noise=0.005)
     look = TubeLook(-1, np.full(9, 8.0), 0.05)
     held = [(FrameTrack(k, "ok", curve, "fast"), img.astype(np.float32)) for k in range(3)]
-    old = _turn_past_holder(held, [curve], base, 0.0, half_width=8.0)
-    new = _turn_past_holder(held, [curve], base, 0.0, 8.0, look, TrackSettings())
+    old, _ = _turn_past_holder(held, [curve], base, 0.0, half_width=8.0)
+    new, aside = _turn_past_holder(held, [curve], base, 0.0, 8.0, look, TrackSettings())
     assert abs(np.degrees(curve.base_angle + old) - 30.0) > 5.0
     assert np.degrees(curve.base_angle + new) == pytest.approx(30.0, abs=0.5)
+    # and the base found again where the tube begins, on its axis
+    assert abs(base_on(curve, base) - mouth) > 5.0
+    assert abs(base_on(curve, base) + aside - mouth) < 1.0
     # a frame whose fit from there fails the checks keeps the curves' tangent
     blank = [(r, np.full_like(image, 0.5)) for r, image in held]
-    assert _turn_past_holder(blank, [curve], base, 0.0, 8.0, look) == pytest.approx(old)
+    assert _turn_past_holder(blank, [curve], base, 0.0, 8.0, look) == (pytest.approx(old), 0j)
