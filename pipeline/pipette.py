@@ -939,6 +939,15 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
                 px: float = 1.0) -> tuple[list[FrameTrack], str | None]:
     """Cut a holder taken for the tube off every frame's centreline.
 
+    The holder is told by the frames' motion (a stretch from the tracked base
+    that stood still while the rest bent, :func:`static_stretch`, or the
+    hinge the bent frames leave its line at, :func:`motion_hinge`), by the
+    profiles along it (:func:`profile_change`), or by edges wider apart than
+    the tube's (:func:`wide_holder_end`). Where the first frame's start was
+    found at a holder's width step (the tracked structure begins at its
+    mouth), only a holder end its profiles show, :data:`AT_STEP_WIDTHS` or
+    more from the tracked base, is cut.
+
     Parameters
     ----------
     results : list of FrameTrack

@@ -1762,7 +1762,10 @@ EDGE_SKIP_HW = 2.0
 
 @dataclass
 class _BaseVotes:
-    """Where the first frames show the base (:data:`BASE_VOTE_FRAMES`)."""
+    """Where the first frames show the base (:data:`BASE_VOTE_FRAMES`), and
+    its tangent: the holder's axis where it shows, else a fit with φ(0) free
+    (from :data:`EDGE_SKIP_HW` half-widths in, for a tube entering the
+    frame's edge at a slant)."""
 
     #: where each frame shows it, px, and the frame
     points: list[complex] = field(default_factory=list)
