@@ -1080,11 +1080,20 @@ def _base_tangent_fit(image: np.ndarray, curve: Curve, look: TubeLook, tol: floa
     300 deg curl: edges found on 30 % of the profiles, the base tangent 23 deg
     off). The fallback keeps the default roughness: held under the strong
     penalty, two curled starts came out worse (a median 0.17 -> 0.34 deg)."""
-    r = refine(image, curve, look, iterations=6, free_base=True, smoothing=BASE_SMOOTHING,
-               tol_px=tol)
+    r = _free_base_fit(image, curve, look, tol)
     if _score(r) >= 0.5 * _score(before):
         return r
     return refine(image, curve, look, iterations=6, tol_px=tol)
+
+
+def _free_base_fit(image: np.ndarray, curve: Curve, look: TubeLook, tol: float) -> Refined:
+    """``curve`` fitted with its base tangent φ(0) (and the base's sideways
+    place) free, under :data:`BASE_SMOOTHING`: the strong roughness penalty
+    makes φ(0) follow the whole tube rather than the few profiles by the
+    base. How the base tangent is measured, at the start, by the first
+    frames' votes and again past a hooked start."""
+    return refine(image, curve, look, iterations=6, free_base=True, smoothing=BASE_SMOOTHING,
+                  tol_px=tol)
 
 
 def edge_scale(image: np.ndarray, curve: Curve, look: TubeLook) -> TubeLook:
@@ -1800,8 +1809,7 @@ class _BaseVotes:
         at = base_at_edge(curve.base, curve.base_angle, hw, image.shape[:2])
         skip = EDGE_SKIP_HW * hw if self.from_edge and at is not None and at >= hw else 0.0
         start = cut_base(curve, skip) if skip and curve.length > 8.0 * skip else curve
-        fit = refine(image, start, look, iterations=6, free_base=True,
-                     smoothing=BASE_SMOOTHING, tol_px=settings.tol_px)
+        fit = _free_base_fit(image, start, look, settings.tol_px)
         if _good(fit, look):
             if start is not curve:
                 # carried back from there to the edge, as it turns there
@@ -1926,21 +1934,23 @@ def _moved_base(curve: Curve, base: complex | None, turn: float = 0.0,
     frames after them have them). Where the tracked structure turns off the
     axis near its start (a skeleton that ran into a wide glass at a slant),
     a slide of tens of px put a bent tube's far end as far off the frame's,
-    and its refit found no edges."""
+    and its refit found no edges. With ``base``, the moved base is then
+    shifted by ``aside`` px (see :func:`_turn_past_holder`)."""
     if base is None:
         return replace(curve, base_angle=curve.base_angle + turn, coef=curve.coef - turn)
     axis = np.exp(1j * curve.base_angle)
     shift = float(np.real((base - curve.base) * np.conj(axis)))
     if abs(shift) <= slide_px:
-        return replace(curve, base=curve.base + shift * axis,
-                       length=max(curve.length - shift, 2.0),
-                       base_angle=curve.base_angle + turn, coef=curve.coef - turn)
-    if shift > 0:
-        shift = _cut_at(curve, base)[0]
-    # (the base tangent as before, turned: the votes measured it against that)
-    cut = cut_base(curve, min(shift, curve.length - 2.0), curve.base_angle + turn,
-                   curve.joints)
-    return replace(cut, base=cut.base + aside) if aside else cut
+        moved = replace(curve, base=curve.base + shift * axis,
+                        length=max(curve.length - shift, 2.0),
+                        base_angle=curve.base_angle + turn, coef=curve.coef - turn)
+    else:
+        if shift > 0:
+            shift = _cut_at(curve, base)[0]
+        # (the base tangent as before, turned: the votes measured it against that)
+        moved = cut_base(curve, min(shift, curve.length - 2.0), curve.base_angle + turn,
+                         curve.joints)
+    return replace(moved, base=moved.base + aside) if aside else moved
 
 
 def _cut_at(curve: Curve, base: complex) -> tuple[float, float]:
@@ -1975,8 +1985,8 @@ def _turn_past_holder(pending, history: list[Curve], base: complex | None, turn:
     the spline carries that turn on past the new base.
 
     With ``look`` (and ``settings``), each of those tangents is measured
-    again from the new base (:func:`_base_tangent_fit`: φ(0) free under the
-    strong roughness penalty, on the frame's curve cut there), where that
+    again from the new base (:func:`_free_base_fit` on the frame's curve
+    cut there), where that
     fit passes the checks: the curves' own tangent there still carries the
     hook they made into the holder (a 40 px tube whose capillary's first
     36 px were cut: the bend 4.8 deg off on every frame). Those fits' base
@@ -2007,8 +2017,7 @@ def _turn_past_holder(pending, history: list[Curve], base: complex | None, turn:
             if s >= r.tracked.length - 4.0 * half_width:
                 continue
             cut = cut_base(r.tracked, s, phi)
-            fit = refine(image, cut, look, iterations=6, free_base=True,
-                         smoothing=BASE_SMOOTHING, tol_px=tol)
+            fit = _free_base_fit(image, cut, look, tol)
             if _good(fit, look):
                 # (the holder's axis where it shows, as the votes take it: a
                 # fit to a bent tube leans into the bend)
