@@ -116,6 +116,10 @@ STILL_EVERY = 2
 #: A frame whose shift lies farther than this (px per frame) from the last
 #: one measured is not measured: a stage drifts, it does not jump.
 MAX_STEP_PX = 3.0
+#: ... a frame read again once the holder's mouth is known
+#: (:func:`holder_path`) may lie this many of the tube's half-widths from the
+#: last: a camera shakes.
+SHAKE_STEP_HW = 1.0
 #: The fit must explain at least this share of the region's variance (a region
 #: hidden or changed, a frame of something else: not measured).
 MIN_R2 = 0.5
@@ -156,6 +160,9 @@ class StageDrift:
         the holder, the fit failed or jumped).
     since : int
         Frames since the last one measured.
+    max_step_px : float
+        A frame measured farther than this from the last one measured (px
+        per frame since) is not taken (:data:`MAX_STEP_PX`).
     """
 
     box: tuple[int, int, int, int]
@@ -172,6 +179,7 @@ class StageDrift:
     following: bool = False
     measured: int = 0
     missed: int = 0
+    max_step_px: float = MAX_STEP_PX
 
     @classmethod
     def start(cls, image: np.ndarray, curve: Curve, half_width: float) -> StageDrift | None:
@@ -308,7 +316,7 @@ class StageDrift:
                 d = fit[0]
         new = complex(d[0], -d[1])
         if (fit is None or not (fit[1] >= MIN_R2) or not np.isfinite(new)
-                or abs(new - self.shift) > MAX_STEP_PX * self.since):
+                or abs(new - self.shift) > self.max_step_px * self.since):
             self.missed += 1
             return self.shift
         self.step, self.shift, self.since, self.fresh = new - self.shift, new, 0, True
@@ -329,6 +337,52 @@ class StageDrift:
         if lines:
             cv2.polylines(mask, lines, False, 1, thickness=thick, shift=2)
         return mask.astype(bool)
+
+
+def holder_path(frames, base: Curve, curves: list[Curve | None], half_width: float
+                ) -> list[complex | None] | None:
+    """The holder's shift on every frame from the first, registered at a base
+    found after the frames were tracked (a second read of them).
+
+    Where the tracker took a holder for the tube, the region it watched lay at
+    the tracked structure's start, not at the holder's mouth: along a
+    straight holder it tells nothing, and a base held at the frame's border
+    is not watched at all. Once the mouth is known (the holder cut off), its
+    region is registered on every frame as :class:`StageDrift` does.
+
+    Parameters
+    ----------
+    frames : iterable of (rows, cols) ndarray
+        The frames, first to last, as tracked (any dtype).
+    base : Curve
+        The first frame's tube, its base at the holder's mouth and its base
+        tangent the holder's axis, px (y up).
+    curves : list of Curve or None
+        Each frame's tracked centreline, px (y up): left out of the region
+        where it lies over it (None: nothing left out).
+    half_width : float
+        The tube's, px.
+
+    Returns
+    -------
+    list of complex or None, or None
+        Per frame, the shift from the first frame, px (y up), None where the
+        frame was not measured (:meth:`StageDrift.measure`); None where no
+        holder shows at the mouth (:meth:`StageDrift.start`).
+    """
+    it = iter(frames)
+    first = next(it, None)
+    region = None if first is None else StageDrift.start(first, base, half_width)
+    if region is None:
+        return None
+    # (a camera that shakes moves the holder by pixels between frames: 5.6 px
+    # on an independent renderer's scene)
+    region.max_step_px = SHAKE_STEP_HW * half_width
+    path: list[complex | None] = [0j]
+    for image, curve in zip(it, curves[1:], strict=False):
+        shift = region.measure(image, curve)
+        path.append(shift if region.fresh else None)
+    return path
 
 
 def _tube_start(half_width: float) -> int:

@@ -49,7 +49,7 @@ from scipy.ndimage import gaussian_filter1d, map_coordinates
 
 from .centreline import Curve, angle_coef, basis_of, cut_base, evaluate, make_basis, resample
 from .profiles import sample_lines
-from .segment import HOLDER_STEP, PIPETTE_STEP
+from .segment import EDGES_BEGIN, HOLDER_STEP, PIPETTE_STEP
 from .track import FrameTrack
 
 #: Frames bent at least this much (deg) away from the first frame's bend tell
@@ -78,6 +78,9 @@ STEP_WIDTHS = 1.0
 #: on, as it must be.) Nor is a stretch cut there that the motion alone told
 #: (no profile step): a tube whose first section does not bend stands as
 #: still as a holder (the same capillary's tube: its first 128 px, 30 %).
+#: (So too where the start was found where the tube's edges begin past a
+#: faint pipette the mask ran on into: an independent renderer's opaque tube
+#: had its first 1 px "cut", its base moved 1.6 px on.)
 AT_STEP_WIDTHS = 1.5
 #: The tube beyond it must keep at least this share of the length tracked. A
 #: holder may cross much of the frame before the tube: an independent
@@ -133,8 +136,11 @@ HINGE_SPREAD_PX = 2.0
 MIN_HINGE_FRAMES = 3
 #: The holder's end is looked for this many half-widths past the static
 #: stretch: a spline through holder and tube, whose curvature cannot step,
-#: leaves the holder's line before the holder ends.
-HOLDER_REACH_HW = 6.0
+#: leaves the holder's line before the holder ends (an independent
+#: renderer's tapered pipette under a tube curling to 500 deg: 5.5
+#: half-widths before), and the tube's reference profiles must lie past the
+#: halo its end casts in phase contrast (1.4 more).
+HOLDER_REACH_HW = 8.0
 #: Where the motion does not tell the holder, the stretch before the profiles'
 #: step must keep its shape (:func:`rigid_wobble`) to this many of the tube's
 #: half-widths (and :data:`STILL_PX`) on this share of the frames at least: a
@@ -609,9 +615,13 @@ def profile_change(image: np.ndarray, curve: Curve, half_width: float, upto: flo
         return float(s[at]), 0.0
     if no_trend:
         # a shading along the tube changes its profiles steadily too: a straight
-        # trend along the whole stretch then fits as well as one along the
-        # holder with the tube's own profile past it
-        if _a_trend(s[:n], prof[:n], at):
+        # trend along the stretch about the change (as far before it as the
+        # tube, its reference too, reaches past it) then fits as well as one
+        # along the holder with the tube's own profile past it. (Over the
+        # whole holder, a tapered pipette's profiles, which change unlike
+        # any line, outweighed the step at its end: taken for a shading.)
+        lo = max(2 * at - len(prof), 0)
+        if _a_trend(s[lo:len(prof)], prof[lo:], at - lo):
             return float(s[at]), 0.0
     last = prof[max(at - k_min, 0):at].mean(axis=0)
     return _end_edge(s, dev, at, half_width), float(np.mean((last - tube) ** 2) / scatter)
@@ -936,7 +946,7 @@ def unhooked(curve: Curve, reach: float) -> Curve:
 
 
 def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
-                px: float = 1.0) -> tuple[list[FrameTrack], str | None]:
+                px: float = 1.0, frames=None) -> tuple[list[FrameTrack], str | None]:
     """Cut a holder taken for the tube off every frame's centreline.
 
     The holder is told by the frames' motion (a stretch from the tracked base
@@ -960,6 +970,9 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
         The tube's half-width, px.
     px : float
         Full-frame pixels per pixel of the frames (binning), for the note.
+    frames : iterable of (rows, cols) ndarray, optional
+        The frames again, first to last, as tracked: once a holder is cut,
+        its mouth's region is registered on each (:func:`_mouth_drift`).
 
     Returns
     -------
@@ -1046,7 +1059,7 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
                    if placed else ""))
     if (told is None or (s < STEP_WIDTHS * 2 * half_width and not profiled)
             or first.length - s < MIN_TUBE_SHARE * first.length
-            or (results[0].base_source.startswith((HOLDER_STEP, PIPETTE_STEP))
+            or (results[0].base_source.startswith((HOLDER_STEP, PIPETTE_STEP, EDGES_BEGIN))
                 and (s < AT_STEP_WIDTHS * 2 * half_width or not (profiled or stepped)))):
         return [r.moved(r.stage_shift - origin) for r in results], None
     axis = holder_axis(first, s, half_width, first_frame())
@@ -1068,17 +1081,26 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
     # its base held at the border, passes its end up to 4.7 px aside)
     tol = max(2.0, OFF_HOLDER_HW * half_width)
     tube = first.length - s
+    drift = (None if frames is None else
+             _mouth_drift(frames, _cut(first, s, axis, hook, shift), results,
+                          half_width, origin))
+    if drift is not None:
+        told += (f"; the holder's mouth then registered on a second read of the frames: it "
+                 f"moved up to {max(abs(d) for d in drift) * px:.1f} px along its axis "
+                 "beyond the drift followed while tracking, and each frame was cut there")
     out = []
-    for r in results:
+    for i, r in enumerate(results):
         if not r.ok:
             out.append(r)
             continue
         # each frame cut where its own centreline passes the holder's end (near
         # its start: a tube curled past a turn may pass it again further on)
+        mouth = end + (drift[i] if drift is not None else 0j)
         arc, z, _, _ = _sampled(r.curve, 0.25)
-        k = int(np.argmin(np.where(arc <= s + least, np.abs(z - end), np.inf)))
+        k = int(np.argmin(np.where(arc <= s + least + abs(mouth - end), np.abs(z - mouth),
+                                   np.inf)))
         at = float(arc[k])
-        missed = (OFF_HOLDER if abs(z[k] - end) > tol
+        missed = (OFF_HOLDER if abs(z[k] - mouth) > tol
                   else OFF_LENGTH if abs((r.curve.length - at) / tube - 1) > LENGTH_OFF
                   else None)
         if missed:
@@ -1093,6 +1115,54 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
             last_section=None).moved(r.stage_shift - origin))
     return out, (f"{told}: a holder (pipette) taken for the tube, cut off every frame (its "
                  "axis the base tangent)")
+
+
+def _mouth_drift(frames, mouth: Curve,
+                 staged: list[FrameTrack], half_width: float, origin: complex
+                 ) -> list[complex] | None:
+    """How far the holder's mouth moved along its axis on each frame beyond
+    the stage's drift the tracker followed, px (y up, along ``mouth``'s base
+    tangent); None where it did not (a still stage, or a drift already
+    followed).
+
+    The holder's region at its mouth (``mouth``'s base, the first frame's
+    tube cut there) is registered on every frame
+    (:func:`pipeline.drift.holder_path`: a second read of ``frames``, each
+    frame's tube past the mouth left out). Along the holder's axis only: across
+    it, each frame's centreline is cut where it passes nearest. Followed
+    once it has moved :data:`pipeline.drift.FOLLOW_MIN_PX` along the axis on
+    :data:`pipeline.drift.FOLLOW_FRAMES` frames in a row; a frame not measured
+    keeps the last one's (the first frames, none)."""
+    from .drift import FOLLOW_FRAMES, FOLLOW_MIN_PX, holder_path
+
+    # (each frame's tube past the mouth, where it lies on the frame: the
+    # holder's stretch of the tracked structure would hide the region)
+    tubes = []
+    for r in staged:
+        if not r.ok:
+            tubes.append(None)
+            continue
+        arc, z, _, _ = _sampled(r.curve, 0.25)
+        at = float(arc[int(np.argmin(np.abs(z - mouth.base)))])
+        tube = _cut(r.curve, at, mouth.base_angle, 0.0)
+        tubes.append(replace(tube, base=tube.base + r.stage_shift - origin)
+                     if at < r.curve.length - 1.0 else None)
+    path = holder_path(frames, mouth, tubes, half_width)
+    if path is None or len(path) != len(staged):
+        return None
+    axis = np.exp(1j * mouth.base_angle)
+    beyond, last = [], 0j
+    for p, r in zip(path, staged, strict=True):
+        last = last if p is None else p
+        # (the frames were moved back by the drift followed while tracking:
+        # the mouth lies where it moved beyond that)
+        beyond.append(float(((last - (r.stage_shift - origin)) * axis.conjugate()).real))
+    run = 0
+    for b in beyond:
+        run = run + 1 if abs(b) >= FOLLOW_MIN_PX else 0
+        if run >= FOLLOW_FRAMES:
+            return [b * axis for b in beyond]
+    return None
 
 
 def _hook(first: Curve, s: float, axis: float, half_width: float) -> float:

@@ -107,6 +107,7 @@ from .refine import (
 )
 from .segment import (
     BORDER_BASE,
+    EDGES_BEGIN,
     HOLDER_STEP,
     PIPETTE_STEP,
     base_at_edge,
@@ -987,7 +988,7 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
                 and not slanted_cut(r.curve.base, r.curve.base_angle, hw0, image.shape)):
             # (a tube the border cuts obliquely begins its full width that far
             # in: it is carried on to the border later, as any other)
-            source = "where the tube's edges begin (the mask ran on into a pipette)"
+            source = EDGES_BEGIN
         elif source in (PIPETTE_STEP, HOLDER_STEP) and r.curve.base == start:
             held = _holder_end(image, r.curve, look.mean_half_width, det.half_width)
             if held is not None:

@@ -676,7 +676,7 @@ def _without_holder(frames, results, det, base_hint, px):
         half_width = det.half_width
     if half_width is None:
         return results, None
-    return drop_holder(results, lambda: as_float(frames.first), half_width, px)
+    return drop_holder(results, lambda: as_float(frames.first), half_width, px, frames=frames)
 
 
 def _base_source(results) -> str:
