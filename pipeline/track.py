@@ -982,14 +982,22 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
         # must reach past it
         hw0 = float(look.half_width[0])
         reach = max(4.0 * hw0, _edge_gap(r) + 2.0 * hw0)
-        start = r.curve.base
+        start, start_length = r.curve.base, r.curve.length
         r = replace(r, curve=locate_base(image, r.curve, look, reach=reach))
         if (source == BORDER_BASE and abs(r.curve.base - start) > 2.0 * hw0
                 and not slanted_cut(r.curve.base, r.curve.base_angle, hw0, image.shape)):
             # (a tube the border cuts obliquely begins its full width that far
             # in: it is carried on to the border later, as any other)
             source = EDGES_BEGIN
-        elif source in (PIPETTE_STEP, HOLDER_STEP) and r.curve.base == start:
+        elif (source in (PIPETTE_STEP, HOLDER_STEP)
+              and 0.0 <= r.curve.length - start_length <= hw0):
+            # (also where the edge pairs moved it back by under a half-width:
+            # a thick glass capillary three times the tube's width shows the
+            # tube inside it, and the search went 3.5 px further in from a
+            # step the mask had put 20 px inside the mouth. Not where they
+            # moved it on: the step lay on the holder's side of the tube's
+            # edges, and those place it better, by 0.3-0.6 px on two
+            # independent scenes)
             held = _holder_end(image, r.curve, look.mean_half_width, det.half_width)
             if held is not None:
                 r = replace(r, curve=held)

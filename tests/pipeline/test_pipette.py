@@ -746,3 +746,34 @@ def test_a_holder_taken_for_the_tube_is_followed_as_the_stage_carries_it_along(
     base_off, stretch, _ = errors(tmp_path / "held")
     assert base_off > 5.0 and stretch > 0.015
 
+
+@pytest.mark.parametrize("moved", [0.0, -3.5])
+def test_a_start_at_a_holder_s_step_is_carried_to_its_mouth_though_edges_moved_it(
+        monkeypatch, moved):
+    import pipeline.track as T
+    from pipeline.centreline import cut_base
+
+    # a thick-walled glass around the tube from the border to its mouth: the
+    # mask's width step (the holder wider than the tube) lies 8 px inside the
+    # mouth, and the search for where the tube's edges begin, which see the
+    # tube inside the glass, moved it 3.5 px further in (as on an independent
+    # renderer's capillary 3x the tube's width: the base 25 px inside it)
+    from scipy.special import erf
+
+    img = tube_image((480, 640), 639 - 240j, ANGLE, LENGTH + 219, 1e-12, HW, noise=0.01)
+    rr, cc = np.mgrid[0:480, 0:640]
+    rel = ((cc - 1j * rr) - BASE) * np.exp(-1j * ANGLE)
+    across = np.abs(rel.imag)
+    wall = (0.5 * (1 + erf((across - 1.3 * HW) / 0.8)) * 0.5 * (1 + erf((3 * HW - across) / 0.8))
+            * 0.5 * (1 + erf(-rel.real / 0.7)))
+    img = (img * (1 - 0.5 * wall)).astype(np.float32)
+    located = T.locate_base
+
+    def further_in(image, curve, look, reach=None, **kwargs):
+        out = located(image, curve, look, reach=reach, **kwargs)
+        return out if reach is None else cut_base(out, moved, out.base_angle)
+
+    monkeypatch.setattr(T, "locate_base", further_in)
+    fit, _, source = T.initialise(img)
+    assert source.startswith(T.HOLDER_STEP) and "become the tube's" in source, source
+    assert abs(fit.curve.base - BASE) < 1.0
