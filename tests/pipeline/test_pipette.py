@@ -750,15 +750,15 @@ def test_a_holder_taken_for_the_tube_is_followed_as_the_stage_carries_it_along(
 @pytest.mark.parametrize("moved", [0.0, -3.5])
 def test_a_start_at_a_holder_s_step_is_carried_to_its_mouth_though_edges_moved_it(
         monkeypatch, moved):
-    import pipeline.track as T
-    from pipeline.centreline import cut_base
-
     # a thick-walled glass around the tube from the border to its mouth: the
     # mask's width step (the holder wider than the tube) lies 8 px inside the
     # mouth, and the search for where the tube's edges begin, which see the
     # tube inside the glass, moved it 3.5 px further in (as on an independent
     # renderer's capillary 3x the tube's width: the base 25 px inside it)
     from scipy.special import erf
+
+    import pipeline.track as T
+    from pipeline.centreline import cut_base
 
     img = tube_image((480, 640), 639 - 240j, ANGLE, LENGTH + 219, 1e-12, HW, noise=0.01)
     rr, cc = np.mgrid[0:480, 0:640]
