@@ -205,12 +205,14 @@ STRAIGHT_DEG = 2.0
 #: Where no centre shows (half of the holder out of the frame), the axis is
 #: the direction of the holder's straight edges alone (:func:`edge_axis`),
 #: from its end back this many half-widths (at least the holder's stretch of
-#: the curve), each side's strongest edge on at least EDGE_AXIS_KEEP of the
-#: profiles in the frame, on a line to EDGE_AXIS_LINE_PX (RMS, px), its
-#: direction known to SYMMETRY_SE_DEG.
+#: the curve), on each side the line through one of the strong edges (at
+#: least EDGE_CANDIDATE of the profile's strongest) of at least
+#: EDGE_AXIS_KEEP of the profiles in the frame, to EDGE_AXIS_LINE_PX (RMS,
+#: px), its direction known to SYMMETRY_SE_DEG.
 EDGE_AXIS_HW = 12.0
 EDGE_AXIS_KEEP = 0.6
 EDGE_AXIS_LINE_PX = 0.5
+EDGE_CANDIDATE = 0.5
 #: A fit through a holder and the tube, its curvature smooth, hooks sideways
 #: where the edges step from the holder's to the tube's: cut there, its base
 #: lay 2-4 px beside the tube's axis (an independent renderer's capillaries,
@@ -750,9 +752,7 @@ def edge_axis(image: np.ndarray, curve: Curve, s: float,
         seen = np.isfinite(g).mean(axis=1) >= 0.5
         if seen.sum() < 8:
             continue
-        at = off[side][np.nanargmax(np.where(np.isfinite(g[seen]), g[seen], -np.inf), axis=1)]
-        points = stations[seen] + normal * at
-        line = _robust_line(np.c_[points.real, points.imag])
+        line = _edge_line(stations[seen], normal, off[side], g[seen])
         if line is None or line[1] < EDGE_AXIS_KEEP * seen.sum():
             continue
         d, kept, rms, span = line
@@ -764,26 +764,68 @@ def edge_axis(image: np.ndarray, curve: Curve, s: float,
     return float(np.angle(np.mean(directions)))
 
 
-def _robust_line(xy: np.ndarray, rounds: int = 3
-                 ) -> tuple[complex, int, float, float] | None:
-    """The line through points ``xy`` (N, 2, px), those over three robust
-    SDs off it (another edge's) left out: its direction, how many points it
-    kept, their RMS distance from it and their span along it (px); None
-    where that RMS is over :data:`EDGE_AXIS_LINE_PX`."""
-    keep = np.ones(len(xy), bool)
-    for _ in range(rounds):
-        if keep.sum() < 3:
-            return None
-        centre = xy[keep].mean(axis=0)
-        _, _, vt = np.linalg.svd(xy[keep] - centre, full_matrices=False)
-        off = np.abs((xy - centre) @ vt[1])
-        spread = 1.4826 * np.median(off[keep])
-        keep = off <= max(3.0 * spread, EDGE_STEP_PX)
-    rms = float(np.sqrt(np.mean(off[keep] ** 2))) if keep.sum() >= 3 else np.inf
+def _edge_line(stations: np.ndarray, normal: complex, off: np.ndarray, grad: np.ndarray
+               ) -> tuple[complex, int, float, float] | None:
+    """The line through one strong edge of most profiles: its direction, how
+    many profiles it passes within :data:`EDGE_AXIS_LINE_PX` of one of their
+    edges, those edges' RMS distance from it (their line fitted) and their
+    span along it (px); None where no line passes that near three.
+
+    ``stations`` (N,) are the profiles' centres, px (y up), sampled at
+    ``off`` px along ``normal``; ``grad`` (N, M) their gradient magnitude.
+    A profile's edges are its gradient's local maxima of at least
+    :data:`EDGE_CANDIDATE` of its strongest. A glass wall shows two edges of
+    about one strength: the strongest alone hops between them, and no one
+    line went through those (a pipette along a frame's border: its axis left
+    to a fit through it, 6 deg off, on the mirror image of a scene whose
+    edges had passed). The line is the one through an edge of a first-
+    quarter and an edge of a last-quarter profile that most profiles pass.
+    """
+    g = np.where(np.isfinite(grad), grad, -np.inf)
+    peak = np.zeros(g.shape, bool)
+    peak[:, 1:-1] = (g[:, 1:-1] > g[:, :-2]) & (g[:, 1:-1] >= g[:, 2:])
+    peak &= g >= EDGE_CANDIDATE * g.max(axis=1, keepdims=True)
+    row, col = np.nonzero(peak)
+    if row.size < 3:
+        return None
+    pts = stations[row] + normal * off[col]
+    n = stations.size
+    first = np.flatnonzero(row < n // 4)
+    last = np.flatnonzero(row >= n - n // 4)
+    if not first.size or not last.size:
+        return None
+    a, b = pts[first][:, None], pts[last][None, :]
+    u = (b - a) / np.maximum(np.abs(b - a), 1e-9)
+    # (each candidate line's distance to every edge; a profile passed where
+    # the nearest of its edges lies within reach)
+    dist = np.abs(((pts[None, None, :] - a[..., None]) * np.conj(u[..., None])).imag)
+    best = np.full((n,) + dist.shape[:2], np.inf)
+    for r in range(n):
+        on = row == r
+        if on.any():
+            best[r] = dist[..., on].min(axis=-1)
+    passed = (best <= EDGE_AXIS_LINE_PX).sum(axis=0)
+    i, j = np.unravel_index(int(np.argmax(passed)), passed.shape)
+    if passed[i, j] < 3:
+        return None
+    # (the edges it passes, one per profile, their line fitted)
+    chosen = []
+    for r in range(n):
+        on = np.flatnonzero(row == r)
+        if on.size:
+            k = on[int(np.argmin(dist[i, j, on]))]
+            if dist[i, j, k] <= EDGE_AXIS_LINE_PX:
+                chosen.append(pts[k])
+    xy = np.array(chosen)
+    centre = xy.mean()
+    _, _, vt = np.linalg.svd(np.c_[(xy - centre).real, (xy - centre).imag], full_matrices=False)
+    d = complex(vt[0, 0], vt[0, 1])
+    resid = ((xy - centre) * np.conj(d)).imag
+    rms = float(np.sqrt(np.mean(resid**2)))
     if rms > EDGE_AXIS_LINE_PX:
         return None
-    along = (xy[keep] - centre) @ vt[0]
-    return complex(vt[0, 0], vt[0, 1]), int(keep.sum()), rms, float(np.ptp(along))
+    along = ((xy - centre) * np.conj(d)).real
+    return d, int(xy.size), rms, float(np.ptp(along))
 
 
 def symmetric_axis(image: np.ndarray, curve: Curve, s: float,
