@@ -2029,14 +2029,34 @@ def _turn_past_holder(pending, history: list[Curve], base: complex | None, turn:
             fit = _free_base_fit(image, cut, look, tol)
             if _good(fit, look):
                 # (the holder's axis where it shows, as the votes take it: a
-                # fit to a bent tube leans into the bend)
+                # fit to a bent tube leans into the bend; else the line of the
+                # held-back curve's stretch through the holder, its centres of
+                # symmetry or its edges: a pipette the skeleton ran 76 px into,
+                # that fit 0.6 deg off on every frame)
                 axis = pipette_axis(image, fit.curve, look)
-                again.append(fit.curve.base_angle if axis is None else axis[0])
+                axis = (axis[0] if axis is not None
+                        else _holder_line(image, r.tracked, s, half_width))
+                again.append(fit.curve.base_angle if axis is None else axis)
                 asides.append(locate_base(image, fit.curve, look).base - cut.base)
         if again:
             aside = complex(np.median(np.real(asides)), np.median(np.imag(asides)))
             return float(np.median(again)) - ref.base_angle, aside
     return float(np.median(phis)) - ref.base_angle, 0j
+
+
+def _holder_line(image: np.ndarray, curve: Curve, s: float, half_width: float
+                 ) -> float | None:
+    """The axis of the holder ``curve``'s first ``s`` px ran through, rad:
+    the line of its profiles' centres of symmetry, or of its edges
+    (:func:`pipeline.pipette.symmetric_axis`, :func:`pipeline.pipette.edge_axis`);
+    None where neither is a line."""
+    from .pipette import edge_axis, symmetric_axis
+
+    for way in (symmetric_axis, edge_axis):
+        axis = way(image, curve, s, half_width)
+        if axis is not None:
+            return axis
+    return None
 
 
 def _refitted(pending, base: complex | None, turn: float, look: TubeLook | None,

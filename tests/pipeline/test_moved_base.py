@@ -134,3 +134,32 @@ def test_a_base_settled_past_a_hooked_start_is_measured_again_on_the_frames():
     # a frame whose fit from there fails the checks keeps the curves' tangent
     blank = [(r, np.full_like(image, 0.5)) for r, image in held]
     assert _turn_past_holder(blank, [curve], base, 0.0, 8.0, look) == (pytest.approx(old), 0j)
+
+
+def test_a_base_settled_past_a_holder_takes_the_holder_s_line_where_no_pipette_axis_shows(
+        monkeypatch):
+    import pipeline.track as T
+    from pipeline.refine import TubeLook
+    from pipeline.track import FrameTrack, TrackSettings, _turn_past_holder
+    from tests.pipeline.synthetic import arc_axis, tube_image
+
+    # the tracked structure runs 70 px up a pipette 1.6x the tube's width
+    # before the tube, which leaves the mouth at 90 deg and bends at once; the
+    # votes put the base at the mouth. A fit from there, its base tangent
+    # free, leans into the bend; the pipette's own line does not (an
+    # independent scene, mirrored: 0.6 deg off on every frame)
+    hw, mouth = 8.0, 320 - 400j
+    img = tube_image((480, 640), mouth, np.radians(90.0), 300.0, -4.5 / 300, hw, noise=0.005,
+                     pipette_half_width=1.6 * hw).astype(np.float32)
+    tube, _ = arc_axis(mouth, np.radians(90.0), 300.0, -4.5 / 300, n=600)
+    curve = fit_to_polyline(np.concatenate([mouth - 1j * np.arange(70, 0, -1), tube]),
+                            np.radians(90.0), n_coef=24)
+    look = TubeLook(-1, np.full(9, hw), 0.05)
+    held = [(FrameTrack(k, "ok", curve, "fast"), img) for k in range(3)]
+    # (where the pipette's axis is not found past the base)
+    monkeypatch.setattr(T, "pipette_axis", lambda *args, **kwargs: None)
+    turn, _ = _turn_past_holder(held, [curve], mouth, 0.0, hw, look, TrackSettings())
+    assert np.degrees(curve.base_angle + turn) == pytest.approx(90.0, abs=0.05)
+    monkeypatch.setattr(T, "_holder_line", lambda *args: None)
+    leaning, _ = _turn_past_holder(held, [curve], mouth, 0.0, hw, look, TrackSettings())
+    assert abs(np.degrees(curve.base_angle + leaning) - 90.0) > 0.15
