@@ -989,15 +989,18 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
             # (a tube the border cuts obliquely begins its full width that far
             # in: it is carried on to the border later, as any other)
             source = EDGES_BEGIN
-        elif (source in (PIPETTE_STEP, HOLDER_STEP)
-              and 0.0 <= r.curve.length - start_length <= hw0):
-            # (also where the edge pairs moved it back by under a half-width:
-            # a thick glass capillary three times the tube's width shows the
-            # tube inside it, and the search went 3.5 px further in from a
-            # step the mask had put 20 px inside the mouth. Not where they
-            # moved it on: the step lay on the holder's side of the tube's
-            # edges, and those place it better, by 0.3-0.6 px on two
-            # independent scenes)
+        elif source in (PIPETTE_STEP, HOLDER_STEP) and (
+                r.curve.base == start
+                or (source == HOLDER_STEP and 0.0 < r.curve.length - start_length <= hw0)):
+            # (also where the edge pairs moved it back by under a half-width
+            # into a holder wider than the tube: a thick glass capillary three
+            # times the tube's width shows the tube inside it, and the search
+            # went 3.5 px further in from a step the mask had put 20 px inside
+            # the mouth. Not where they moved it on: the step lay on the
+            # holder's side of the tube's edges, and those place it better,
+            # by 0.3-0.6 px on two independent scenes; nor into a pipette
+            # narrower than the tube, which cannot hold the tube's edges: there
+            # the mask's step lay past where they begin)
             held = _holder_end(image, r.curve, look.mean_half_width, det.half_width)
             if held is not None:
                 r = replace(r, curve=held)
