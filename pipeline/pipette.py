@@ -704,12 +704,20 @@ def holder_axis(curve: Curve, s: float, half_width: float,
                & (arc <= curve.length - AXIS_CLEAR_HW * half_width)]
     if past.size >= 4 * half_width and np.ptp(past) <= np.radians(STRAIGHT_DEG):
         return float(np.mean(past))
-    if image is not None:
-        for way in (symmetric_axis, edge_axis):
-            axis = way(image, curve, s, half_width)
-            if axis is not None:
-                return axis
-    return axis_angle(curve, s)
+    axis = None if image is None else holder_line(image, curve, s, half_width)
+    return axis_angle(curve, s) if axis is None else axis
+
+
+def holder_line(image: np.ndarray, curve: Curve, s: float, half_width: float
+                ) -> float | None:
+    """The axis of the holder ``curve``'s first ``s`` px run through, rad: the
+    line of its profiles' centres of symmetry (:func:`symmetric_axis`), or of
+    its edges (:func:`edge_axis`); None where neither is a line."""
+    for way in (symmetric_axis, edge_axis):
+        axis = way(image, curve, s, half_width)
+        if axis is not None:
+            return axis
+    return None
 
 
 def _direction_known(rms: float, n: int, span: float) -> bool:

@@ -788,6 +788,8 @@ HOLDER_STEP = "holder width step (a holder wider than the tube)"
 AMBIGUOUS_BASE = "skeleton end nearest the border"
 #: The base found where the structure meets the image border, no holder seen.
 BORDER_BASE = "image border (no pipette step seen)"
+#: The base found where the tube's edges begin, the structure's skeleton having
+#: run on into a faint pipette before them (:func:`pipeline.track.initialise`).
 EDGES_BEGIN = "where the tube's edges begin (the mask ran on into a pipette)"
 #: Width of a holder (a clamp or a wide capillary the tube is pushed into)
 #: over the tube's, at least. A tube's own sections differ by at most 25 % in

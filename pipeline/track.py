@@ -2052,17 +2052,11 @@ def _turn_past_holder(pending, history: list[Curve], base: complex | None, turn:
 
 def _holder_line(image: np.ndarray, curve: Curve, s: float, half_width: float
                  ) -> float | None:
-    """The axis of the holder ``curve``'s first ``s`` px ran through, rad:
-    the line of its profiles' centres of symmetry, or of its edges
-    (:func:`pipeline.pipette.symmetric_axis`, :func:`pipeline.pipette.edge_axis`);
-    None where neither is a line."""
-    from .pipette import edge_axis, symmetric_axis
+    """:func:`pipeline.pipette.holder_line` (imported here: pipette imports
+    this module)."""
+    from .pipette import holder_line
 
-    for way in (symmetric_axis, edge_axis):
-        axis = way(image, curve, s, half_width)
-        if axis is not None:
-            return axis
-    return None
+    return holder_line(image, curve, s, half_width)
 
 
 def _refitted(pending, base: complex | None, turn: float, look: TubeLook | None,
