@@ -36,7 +36,7 @@ from skimage.morphology import skeletonize
 
 from .centreline import from_image
 from .robust import robust_sd
-from .steps import two_level_fit
+from .steps import trend_level_fit, two_level_fit
 
 #: The tube found by its outline (:func:`outline_foreground`) is taken instead
 #: of the one found by its contrast when it is this much longer: on a mottled
@@ -759,6 +759,52 @@ def _crossing_branch(path_rc: np.ndarray, width: np.ndarray) -> np.ndarray | Non
     return path_rc[split + cut:] if wide_first else path_rc[:max(split - cut, 0)]
 
 
+def _pipette_step(path_rc: np.ndarray, split: int, ratio: float, half_width: float,
+                  min_pipette: float, margin: float, shape) -> bool:
+    """Whether ``path_rc``'s width, stepping up by ``ratio`` at ``split``,
+    steps from a narrower pipette onto the tube: a step of over 15 %, the
+    narrow stretch longer than ``min_pipette`` (working px), running from the
+    border of a frame of ``shape`` (within ``margin``) in the tube's line,
+    and no oblique cut of the tube by the border."""
+    return (ratio > 1.15 and split > min_pipette
+            and _touches_border(path_rc[0], shape, margin)
+            and _in_line(path_rc, split, ratio, half_width)
+            and not _slanted_step(path_rc, split, half_width, shape))
+
+
+def _tapered_split(width: np.ndarray, trim: int = 0) -> tuple[int, float]:
+    """Where ``width`` steps from a straight trend narrowing towards the
+    step onto a level (:func:`~pipeline.steps.trend_level_fit`), and the
+    level over the trend's end there: (index, ratio); (0, 1.0) where the
+    trend widens towards the step or ``width`` is too short.
+
+    A pulled glass pipette narrows towards its mouth: a tube wider than its
+    mouth but narrower than the pipette at the frame's border gives a two-level
+    fit no step (the pipette's mean width about the tube's), and its base was
+    put at the border (an independent scene: length 50 % long). ``trim`` as
+    :func:`_split_point`."""
+    trim = int(max(0, min(trim, (width.size - 8) // 2)))
+    inner = width[trim:width.size - trim]
+    if inner.size < 8:
+        return 0, 1.0
+    sse, end, after = trend_level_fit(inner)
+    # (a trend fitted to 3 points at least, a level to 3)
+    k = int(np.argmin(sse[1:-2])) + 1
+    slope = np.polyfit(np.arange(k + 2), inner[:k + 2], 1)[0]
+    if -slope * (k + 1) < TAPER_MIN * after[k]:
+        return 0, 1.0
+    return k + 2 + trim, float(after[k] / max(end[k], 1e-9))
+
+
+#: A pipette's taper narrows it by this share of the tube's width at least
+#: over the stretch in view (:func:`_tapered_split`): a flatter trend is the
+#: mask's own wobble, and a trend that widens the pipette towards the step is
+#: no taper. (An independent scene's pulled pipette: from 1.35 to 0.75 of the
+#: tube's width; a tube blurring towards its tip, its mask widening, gave a
+#: trend of 3 %, with the mask's widening at the border.)
+TAPER_MIN = 0.15
+
+
 def _split_point(width: np.ndarray, trim: int = 0) -> tuple[int, float]:
     """Best single step of a piecewise-constant fit to ``width``: (index, ratio after/before).
 
@@ -1107,13 +1153,15 @@ def _detect_largest(mask: np.ndarray, f: int, base_hint, base_end, *, outline: b
         # a narrower stretch at one end, a wider holder at the other: the video tells
         split = 0
         source = AMBIGUOUS_BASE
-    elif (ratio > 1.15 and split > min_pipette and _touches_border(path_rc[0], shape, margin)
-          and _in_line(path_rc, split, ratio, half_width)
-          and not _slanted_step(path_rc, split, half_width, shape)):
+    elif _pipette_step(path_rc, split, ratio, half_width, min_pipette, margin, shape):
         source = PIPETTE_STEP
     elif (ratio < 1 / HOLDER_RATIO and split > min_pipette
           and _touches_border(path_rc[0], shape, margin)):
         source = HOLDER_STEP
+    elif _pipette_step(path_rc, *(tapered := _tapered_split(width, trim)), half_width,
+                       min_pipette, margin, shape):
+        split = tapered[0]
+        source = PIPETTE_STEP
     elif ambiguous:
         split = 0
         source = AMBIGUOUS_BASE

@@ -44,13 +44,15 @@ def _signed_position(zp, base, angle, length, kappa):
 def tube_image(shape, base, angle, length, kappa, half_width, *, polarity=-1,
                background=0.8, contrast=0.35, edge_px=0.7, noise=0.0, seed=0,
                pipette_half_width=None, pipette_contrast=0.5, pipette_offset=0.0,
-               round_cap=False):
+               pipette_taper=0.0, round_cap=False):
     """A float32 frame of one tube (and optionally a pipette behind its base).
 
     The tube is ``half_width`` wide on each side of the axis, with soft (erf)
     edges of scale ``edge_px``; transmitted-light looks have ``polarity`` −1.
     The pipette's contrast is ``pipette_contrast`` times the tube's, its axis
-    ``pipette_offset`` px to the left of the tube's (0: coaxial). Its end
+    ``pipette_offset`` px to the left of the tube's (0: coaxial); its
+    half-width grows by ``pipette_taper`` px per px back from its mouth (a
+    pulled pipette). The tube's end
     is a flat face at ``length``, or with ``round_cap`` a hemisphere of its
     radius whose apex lies there.
     """
@@ -72,8 +74,8 @@ def tube_image(shape, base, angle, length, kappa, half_width, *, polarity=-1,
     if pipette_half_width is not None:
         rel = (zp - base) * np.exp(-1j * angle)
         behind = 0.5 * (1 + erf(-rel.real / edge_px))
-        pip = behind * 0.5 * (1 + erf((pipette_half_width - np.abs(rel.imag - pipette_offset))
-                                      / edge_px))
+        hw = pipette_half_width + pipette_taper * np.maximum(-rel.real, 0.0)
+        pip = behind * 0.5 * (1 + erf((hw - np.abs(rel.imag - pipette_offset)) / edge_px))
         img *= 1 + polarity * pipette_contrast * contrast * pip
     if noise:
         img += np.random.default_rng(seed).normal(0, noise, shape)
