@@ -1040,7 +1040,7 @@ def initialise(image: np.ndarray, *, base_hint=None, base_end=None, detection=No
             break
     if axis is not None:
         direction, on_axis = axis
-        turned = _moved_base(r.curve, None, direction - r.curve.base_angle)
+        turned = moved_base(r.curve, None, direction - r.curve.base_angle)
         r = refine(image, replace(turned, base=on_axis), look, iterations=4, tol_px=tol)
     return r, look, source
 
@@ -1520,7 +1520,7 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
             turn, aside = _turn_past_holder(pending, history, base, turn,
                                             look.mean_half_width, look, settings)
             if base is not None or turn:
-                history = [_moved_base(h, None if base is None else base + followed(), turn,
+                history = [moved_base(h, None if base is None else base + followed(), turn,
                                        look.mean_half_width, aside=aside)
                            for h in history]
                 if base_hint is None:
@@ -1935,7 +1935,7 @@ def _on_stage(r: FrameTrack, shift: complex) -> FrameTrack:
     return replace(r.moved(shift - r.stage_shift), stage_shift=shift)
 
 
-def _moved_base(curve: Curve, base: complex | None, turn: float = 0.0,
+def moved_base(curve: Curve, base: complex | None, turn: float = 0.0,
                 slide_px: float = 0.0, aside: complex = 0j) -> Curve:
     """``curve`` with its base moved along its base axis to abreast of
     ``base`` and its base tangent turned by ``turn`` rad (the shape past the
@@ -2084,7 +2084,7 @@ def _refitted(pending, base: complex | None, turn: float, look: TubeLook | None,
                                                  or result.frame in restaged):
             out.append(result)
             continue
-        moved = (_moved_base(result.tracked, None if base is None else base + result.stage_shift,
+        moved = (moved_base(result.tracked, None if base is None else base + result.stage_shift,
                              turn, look.mean_half_width, aside=aside)
                  if moves else result.tracked)
         if result.base_source and moves:

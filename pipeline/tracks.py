@@ -22,6 +22,7 @@ import pandas as pd
 
 from . import schema as S
 from .atomic import write_csv, write_json
+from .backtrack import track_back
 from .binning import Binning
 from .centreline import Curve, fit_to_polyline, resample, tip_point
 from .colour import ChannelChoice, choose_channel
@@ -270,6 +271,8 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
         results = list(track_frames(iter(frames), base_hint=base_hint, base_end=base_end,
                                     first_detection=first_det, progress=tick,
                                     settings=settings, joints=joints))
+        results, back_note = track_back(frames, results, base_hint=base_hint,
+                                        settings=settings, joints=joints)
         unmeasured = not any(r.ok for r in results)
         results, still_note, still = _stood_still(frames, results, first_det)
         if still is not None:
@@ -339,6 +342,8 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
     step_note = _end_step_note(results)
     if step_note:
         notes.append(step_note)
+    if back_note:
+        notes.append(back_note)
     if view_note:
         notes.append(view_note)
     if border_note:

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from pipeline.centreline import fit_to_polyline, resample, tip_point
-from pipeline.track import _moved_base
+from pipeline.track import moved_base
 
 
 def _turning_start():
@@ -19,7 +19,7 @@ def _turning_start():
 def test_a_base_moved_towards_the_tip_keeps_the_tip_where_it_was():
     curve = _turning_start()
     axis = np.exp(1j * curve.base_angle)
-    moved = _moved_base(curve, curve.base + 29.0 * axis)
+    moved = moved_base(curve, curve.base + 29.0 * axis)
     # (sliding the whole curve 29 px along the base axis put the tip 25 px off;
     # kept to a px, the first span turning from the base tangent as voted to the
     # curve's there, 22 deg off it: well within a refit's reach)
@@ -35,13 +35,13 @@ def test_a_base_moved_towards_the_tip_keeps_the_tip_where_it_was():
 def test_a_base_moved_back_runs_straight_along_the_axis_and_turns_as_voted():
     curve = _turning_start()
     axis = np.exp(1j * curve.base_angle)
-    moved = _moved_base(curve, curve.base - 20.0 * axis, turn=np.radians(1.0))
+    moved = moved_base(curve, curve.base - 20.0 * axis, turn=np.radians(1.0))
     assert moved.length == pytest.approx(curve.length + 20.0)
     assert abs(moved.base - (curve.base - 20.0 * axis)) < 1e-9
     assert moved.base_angle == pytest.approx(curve.base_angle + np.radians(1.0))
     assert abs(tip_point(moved) - tip_point(curve)) < 0.5
     # only turned, the shape past the first span is the one it was
-    turned = _moved_base(curve, None, turn=np.radians(1.0))
+    turned = moved_base(curve, None, turn=np.radians(1.0))
     assert turned.length == curve.length and turned.base == curve.base
     assert turned.coef[-1] + turned.base_angle == pytest.approx(curve.coef[-1]
                                                                   + curve.base_angle)
@@ -82,11 +82,11 @@ def test_a_base_settled_past_a_hooked_start_takes_the_tube_s_tangent_there():
 def test_a_short_move_slides_the_curve_a_long_one_cuts_it():
     curve = _turning_start()
     axis = np.exp(1j * curve.base_angle)
-    slid = _moved_base(curve, curve.base + 3.0 * axis, slide_px=8.0)
+    slid = moved_base(curve, curve.base + 3.0 * axis, slide_px=8.0)
     assert slid.coef.tolist() == curve.coef.tolist()
     assert slid.base == pytest.approx(curve.base + 3.0 * axis)
     assert slid.length == pytest.approx(curve.length - 3.0)
-    cut = _moved_base(curve, curve.base + 29.0 * axis, slide_px=8.0)
+    cut = moved_base(curve, curve.base + 29.0 * axis, slide_px=8.0)
     assert abs(tip_point(cut) - tip_point(curve)) < 1.0
 
 
