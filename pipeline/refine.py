@@ -566,6 +566,10 @@ class Refined:
         curvature's trend from the stretch before, :func:`_tip_trend`),
         ``"constant"`` (a constant curvature), or ``""`` (not held: none
         asked for, or the edges told against both).
+    sided : (M,) bool ndarray, optional
+        Profiles dropped where another part of the tube lies against it that
+        placed the tube by the side edge that part left clear (counted in
+        :attr:`coverage`).
     """
 
     curve: Curve
@@ -590,6 +594,7 @@ class Refined:
     end_profile: np.ndarray | None = None
     cap_shape: float = float("nan")
     tip_hold: str = ""
+    sided: np.ndarray | None = None
 
     @property
     def valid_fraction(self) -> float:
@@ -615,8 +620,13 @@ class Refined:
 
     @property
     def coverage(self) -> float:
-        """Share of the profiles usable at all (1 unless the tube crosses itself)."""
-        return float(self.usable.mean()) if self.usable is not None else 1.0
+        """Share of the profiles usable at all (1 unless the tube crosses
+        itself), or that placed the tube by the one side edge another part
+        lying against it left clear (:attr:`sided`)."""
+        if self.usable is None:
+            return 1.0
+        return float((self.usable | self.sided).mean() if self.sided is not None
+                     else self.usable.mean())
 
 
 def profile_spacing(half_width: float) -> float:
@@ -927,6 +937,7 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
         # (not in a relief, whose two edges step alike: one alone is no side)
         single = (contact & (free != 0) & (from_end >= SIDE_END_HW * hw)
                   if free is not None and look.polarity != 0 else None)
+        sided = np.zeros(idx.size, bool)
         if single is not None and single.any():
             # the side a coil over the profile leaves clear still places the tube
             at = np.flatnonzero(single)
@@ -936,6 +947,7 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
                                       min_strength=SIDE_WEAKEST * look.strength,
                                       max_strength=SIDE_STRONGEST * look.strength)
             at, c_one = at[ok], c_one[ok]
+            sided[at] = True
             if at.size:
                 ref = float(np.median(delta[valid])) if valid.sum() >= 4 else 0.0
                 w_one = SIDE_WEIGHT * np.minimum(
@@ -1109,7 +1121,7 @@ def refine(image: np.ndarray, curve: Curve, look: TubeLook, *, origin=(0.0, 0.0)
     return Refined(curve, u, width, edges.valid, rms, tip_found, it, strength, ~dropped, mids,
                    tip_correction, noise, last_section, end_offset, end_steps, in_view=in_view,
                    last_move_px=float(move), told_offset=told_offset, end_profile=end_profile,
-                   cap_shape=cap_shape, tip_hold=tip_hold)
+                   cap_shape=cap_shape, tip_hold=tip_hold, sided=sided)
 
 
 def end_step_left_out(curve: Curve, step_px: float, offset_px: float) -> bool:

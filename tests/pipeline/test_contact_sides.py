@@ -5,6 +5,7 @@ tube where a coil runs beside or over it."""
 from dataclasses import replace
 
 import numpy as np
+import pytest
 from scipy.spatial import cKDTree
 
 from pipeline import refine as refine_module
@@ -124,6 +125,25 @@ def test_touching_runs_are_placed_by_the_edges_they_leave_clear(monkeypatch):
     monkeypatch.setattr(refine_module, "SIDE_WEIGHT", 0.0)
     blind = refine(img, start, look, iterations=10, avoid_contact=True, fit_length=False)
     assert _off(blind.curve, z) > 1.0
+
+
+def test_profiles_placed_by_a_clear_edge_count_as_covering_the_tube():
+    """Along the touching hairpin nearly every profile is dropped for its
+    pairs (the other run within reach), which alone would read as a tube
+    hidden under itself (:data:`pipeline.track.MIN_COVERAGE`); the clear
+    edges place the tube there, and count."""
+    from pipeline.track import MIN_COVERAGE
+
+    img, z, truth = _hairpin_image()
+    look = TubeLook(-1, np.full(9, PIN_HW), 0.0)
+    strength = float(np.median(edges_at(img, truth, look, np.linspace(0.47, 0.53, 9)).strength))
+    fit = refine(img, truth, replace(look, strength=strength), iterations=4,
+                 avoid_contact=True, fit_length=False)
+    assert fit.usable.mean() < MIN_COVERAGE
+    assert not (fit.sided & fit.usable).any()
+    assert fit.sided.mean() > 0.5
+    assert fit.coverage == pytest.approx((fit.usable | fit.sided).mean())
+    assert fit.coverage >= 0.8
 
 
 def test_a_relief_or_a_frame_without_contact_takes_no_single_edge(monkeypatch):
