@@ -29,8 +29,8 @@ LENGTH_OFF = 0.05
 REFERENCE_FRAMES = 5
 #: Frames held in memory for the backward pass at most, in bytes: a video's
 #: frames cannot be read backwards, so those before the start are kept as
-#: they are read again (1 GiB: 1300 frames of 1024x768 in float32 ...
-#: the frames farther back than that are left as they were, and said so).
+#: they are read again (1 GiB: some 1300 frames of 1024x768 8-bit, 340 of
+#: them in float32; the frames farther back are left as they were, and said so).
 MEMORY_BYTES = 1 << 30
 #: The status of a frame measured on something else (:data:`LENGTH_OFF`)
 #: that the backward pass did not find either.
