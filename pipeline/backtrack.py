@@ -46,9 +46,10 @@ def _starts(results: list[FrameTrack]) -> list[int]:
 
 def _to_redo(results: list[FrameTrack], start: int, length: float) -> list[int]:
     """The frames before ``start`` to track again: those lost, and those
-    measured ``LENGTH_OFF`` or more off ``length`` (px) by an earlier start
-    that measured fewer frames than the last one (frames measured before the
-    first start were found backwards from it, and count as its own)."""
+    measured more than ``LENGTH_OFF`` off ``length`` (px), not where the tube
+    crossed itself, by an earlier start that measured fewer frames than the
+    last one (frames measured before the first start were found backwards
+    from it, and count as its own)."""
     starts = _starts(results) + [len(results)]
     # frames measured by each start up to the next
     runs = {s: sum(r.ok for r in results[s:e]) for s, e in pairwise(starts)}
@@ -61,7 +62,8 @@ def _to_redo(results: list[FrameTrack], start: int, length: float) -> list[int]:
         r = results[i]
         if not r.ok:
             redo.append(i)
-        elif runs[owner] < last_run and abs(r.curve.length / length - 1.0) > LENGTH_OFF:
+        elif (runs[owner] < last_run and not r.crossing
+              and abs(r.curve.length / length - 1.0) > LENGTH_OFF):
             redo.append(i)
     return redo
 
@@ -111,30 +113,36 @@ def track_back(frames, results: list[FrameTrack], *, base_hint=None,
         return results, None
     first = redo[0]
     kept: list[np.ndarray] = []
-    size = 0
     for i, frame in enumerate(frames):
         if i >= first:
-            # (a reader may hand out one buffer for every frame)
-            kept.append(np.array(frame, copy=True))
-            size += kept[-1].nbytes
-            # the frames farthest back go first, past the memory allowed
-            while size > MEMORY_BYTES and len(kept) > 2:
-                size -= kept.pop(0).nbytes
-                first += 1
+            if not kept:
+                # the frames farthest back are left out, past the memory allowed
+                first = max(first, start + 1 - max(2, MEMORY_BYTES // max(frame.nbytes, 1)))
+            if i >= first:
+                # (a reader may hand out one buffer for every frame)
+                kept.append(np.array(frame, copy=True))
         if i >= start:
             break
     if len(kept) != start - first + 1:
         return results, None  # (the frames read again ended early)
+    held_back = redo[0] < first
+    redo = [i for i in redo if i >= first]
+    if not redo:
+        return results, (f"frames before the tracker's start on frame {start} were lost or "
+                         "measured off the tube it found there, but lie farther back than "
+                         f"the {len(kept)} frames held in memory for a backward pass: left "
+                         "as they were")
     anchor = results[start]
-    hint = base_hint if base_hint is not None else (anchor.curve.base.real,
-                                                    -anchor.curve.base.imag)
+    # (the base where it stood on the start's frame: the forward pass carried
+    # a given one with the stage's drift)
+    shift = anchor.stage_shift
+    hint = ((base_hint[0] + shift.real, base_hint[1] - shift.imag) if base_hint is not None
+            else (anchor.curve.base.real, -anchor.curve.base.imag))
     back = list(track_frames(reversed(kept), base_hint=hint, settings=settings,
                              joints=joints))
     out = list(results)
     found = off = 0
     for i in redo:
-        if i < first:
-            continue
         b = back[start - i]
         if b.ok:
             # the base where the start has it (where the stage stood on this
@@ -150,15 +158,15 @@ def track_back(frames, results: list[FrameTrack], *, base_hint=None,
                              stage_shift=anchor.stage_shift + b.stage_shift)
             found += 1
         elif out[i].ok:
-            out[i] = replace(out[i], status=OFF_THE_TUBE, curve=None, fit=None,
-                             last_section=None, stage="")
+            # (nothing of what that start learnt stays: its half-width, look)
+            out[i] = FrameTrack(i, OFF_THE_TUBE, None, "", stage_shift=out[i].stage_shift)
             off += 1
     note = (f"{len(redo)} frames before the tracker's start on frame {start} were lost or "
             f"measured off the tube it found there: tracked again backwards from it, "
             f"{found} found")
     if off:
         note += f", {off} measured on something else and not found (now unmeasured)"
-    if redo[0] < first:
+    if held_back:
         note += (f"; frames before {first} left as they were (only {len(kept)} frames are "
                  "held in memory for the backward pass)")
     return out, note

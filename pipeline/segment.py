@@ -772,11 +772,21 @@ def _pipette_step(path_rc: np.ndarray, split: int, ratio: float, half_width: flo
             and not _slanted_step(path_rc, split, half_width, shape))
 
 
+#: A pipette's taper narrows it by this share of the tube's width at least
+#: over the stretch in view (:func:`_tapered_split`): a flatter trend is the
+#: mask's own wobble, and a trend that widens the pipette towards the step is
+#: no taper. (An independent scene's pulled pipette: from 1.35 to 0.75 of the
+#: tube's width; a tube blurring towards its tip, its mask widening, gave a
+#: trend of 3 %, with the mask's widening at the border.)
+TAPER_MIN = 0.15
+
+
 def _tapered_split(width: np.ndarray, trim: int = 0) -> tuple[int, float]:
     """Where ``width`` steps from a straight trend narrowing towards the
     step onto a level (:func:`~pipeline.steps.trend_level_fit`), and the
     level over the trend's end there: (index, ratio); (0, 1.0) where the
-    trend widens towards the step or ``width`` is too short.
+    trend narrows by less than :data:`TAPER_MIN` of the level (or widens)
+    towards the step, or ``width`` is too short.
 
     A pulled glass pipette narrows towards its mouth: a tube wider than its
     mouth but narrower than the pipette at the frame's border gives a two-level
@@ -794,15 +804,6 @@ def _tapered_split(width: np.ndarray, trim: int = 0) -> tuple[int, float]:
     if -slope * (k + 1) < TAPER_MIN * after[k]:
         return 0, 1.0
     return k + 2 + trim, float(after[k] / max(end[k], 1e-9))
-
-
-#: A pipette's taper narrows it by this share of the tube's width at least
-#: over the stretch in view (:func:`_tapered_split`): a flatter trend is the
-#: mask's own wobble, and a trend that widens the pipette towards the step is
-#: no taper. (An independent scene's pulled pipette: from 1.35 to 0.75 of the
-#: tube's width; a tube blurring towards its tip, its mask widening, gave a
-#: trend of 3 %, with the mask's widening at the border.)
-TAPER_MIN = 0.15
 
 
 def _split_point(width: np.ndarray, trim: int = 0) -> tuple[int, float]:

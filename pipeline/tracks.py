@@ -284,7 +284,10 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
             if isinstance(found, str):
                 still_note = f"{still_note}; {found}"
             else:
+                # (tracked afresh past what stood still: the backward pass's
+                # note was of the results set aside)
                 frames, results, first_det, still_note = found
+                back_note = None
         results, holder_note = _without_holder(frames, results, first_det, base_hint,
                                                binning.factor)
         if holder_note and joints is not None:
