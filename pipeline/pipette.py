@@ -82,6 +82,12 @@ STEP_WIDTHS = 1.0
 #: faint pipette the mask ran on into: an independent renderer's opaque tube
 #: had its first 1 px "cut", its base moved 1.6 px on.)
 AT_STEP_WIDTHS = 1.5
+#: ... unless the profiles step there by this much at least (a material's
+#: change, not a section's) a width or more from the start and the stretch
+#: stood still: a faint glass band as wide as the tube, the start found 19 px
+#: into it (the mask's pipette step; the tube's edges taken on along the
+#: glass), its profiles stepping 60x their scatter at the mouth, 17.6 px in.
+SURE_CHANGE = 40.0
 #: The tube beyond it must keep at least this share of the length tracked. A
 #: holder may cross much of the frame before the tube: an independent
 #: renderer's pipette over half a 1280 px frame, before 90 px of tube (13 %);
@@ -1049,6 +1055,7 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
     profiled = True
     # (whether its profiles step at the holder's end, however it was found)
     stepped = False
+    change = 0.0
     if still >= least:
         s, change = profile_change(first_frame(), first, half_width,
                                    still + HOLDER_REACH_HW * half_width)
@@ -1110,7 +1117,10 @@ def drop_holder(results: list[FrameTrack], first_frame, half_width: float,
     if (told is None or (s < STEP_WIDTHS * 2 * half_width and not profiled)
             or first.length - s < MIN_TUBE_SHARE * first.length
             or (results[0].base_source.startswith((HOLDER_STEP, PIPETTE_STEP, EDGES_BEGIN))
-                and (s < AT_STEP_WIDTHS * 2 * half_width or not (profiled or stepped)))):
+                and ((s < AT_STEP_WIDTHS * 2 * half_width
+                      and not (profiled and change >= SURE_CHANGE
+                               and s >= STEP_WIDTHS * 2 * half_width))
+                     or not (profiled or stepped)))):
         return [r.moved(r.stage_shift - origin) for r in results], None
     axis = holder_axis(first, s, half_width, first_frame())
     hook = _hook(first, s, axis, half_width)

@@ -712,6 +712,28 @@ def test_a_holder_s_end_within_a_width_and_a_half_of_a_start_at_its_mouth_is_not
     assert all(r.curve.base == base for r in out)
 
 
+def test_a_holder_whose_look_steps_a_width_past_a_start_at_its_step_is_cut():
+    # a start at a pipette's width step that lay 20 px into a glass band as
+    # wide as the tube (the mask's step: the tube's edges taken on along the
+    # glass): the stretch stands still and its profiles step from the glass's
+    # look to the tube's far beyond a section's change, more than a width on.
+    # Within a width and a half of such a start a holder's end is otherwise
+    # left alone (see the test above); a material's step is not.
+    from dataclasses import replace as swap
+
+    start, mouth = 100 - 240j, 120 - 240j
+    img = tube_image((480, 640), mouth, 0.0, 340.0, 1e-12, HW, noise=0.005,
+                     pipette_half_width=HW, pipette_contrast=0.3)
+    results = [swap(r, curve=swap(r.curve, base=start), base_source=pipette.PIPETTE_STEP)
+               for r in _clamped_tracks(20.0, [0.0, 0.5, 1.0, 2.0], noise=1e-3, tube=340.0)]
+    out, note = pipette.drop_holder(results, lambda: img, HW)
+    assert note is not None and "profile stepped" in note, note
+    assert all(abs(r.curve.base - mouth) < 1.5 for r in out), [r.curve.base for r in out]
+    # (the step is a material's: far over what a section's change gives)
+    _, change = pipette.profile_change(img, results[0].curve, HW, 20.0 + 8 * HW)
+    assert change >= pipette.SURE_CHANGE
+
+
 def test_a_holder_taken_for_the_tube_is_followed_as_the_stage_carries_it_along(
         tmp_path, monkeypatch):
     # a holder as wide as the tube runs to the border, where the tracker put
