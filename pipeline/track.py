@@ -569,6 +569,10 @@ class FrameTrack:
     tip_hold : str
         :attr:`pipeline.refine.Refined.tip_hold` of the fit the shape
         reported came from.
+    look : TubeLook or None
+        The look as the frames up to this one had told it, on measured frames
+        (:func:`hold_tip_trend` refits the frames fitted before it told the
+        tip's trend).
     """
 
     frame: int
@@ -598,6 +602,7 @@ class FrameTrack:
     cap_shape: float = float("nan")
     cap: float | None = None
     tip_hold: str = ""
+    look: TubeLook | None = None
 
     def moved(self, step: complex) -> FrameTrack:
         """This frame with its curves moved by ``step`` (px, y up)."""
@@ -1482,6 +1487,7 @@ def track_frames(frames: Iterable[np.ndarray], *, base_hint=None, base_end=None,
                 look = trend_votes.add(result.fit, look)
             if look.end_step_px:
                 result = replace(result, end_step=_told_step(look))
+            result = replace(result, look=look)
             if look.polarity == 0 and look.shear is None and not result.crossing:
                 image = as_float(frame) if image is None else image
                 look = shear_votes.add(image, result.tracked, look)
@@ -2438,6 +2444,72 @@ def _reported(r: Refined) -> Curve:
     if r.tip_correction is None or r.tip_correction.size != c.coef.size:
         return c
     return c.with_params(c.coef + r.tip_correction, c.length)
+
+
+def hold_tip_trend(frames, results: list[FrameTrack], settings: TrackSettings | None = None
+                   ) -> tuple[list[FrameTrack], int]:
+    """The frames measured before the frames told the tube's curvature trend
+    along its end (:class:`_TrendVotes`), their tip stretch held to it again
+    in the shape reported, where their edges do not tell against it; and how
+    many were.
+
+    A tube whose curvature ramps towards its tip shows it more clearly the
+    more it bends: the trend was told on an independent scene's 20th frame of
+    30 (curvature 0.4 -> 1.6 of its mean along the tube), and the frames
+    before, their tip stretch held to a constant curvature, bent 1-2.7 deg
+    too little. Each is fitted once more, from its own fit, with the look the
+    frames told (one Gauss-Newton round, the frames read again); the shape
+    reported is kept as it was where the edges tell against the trend or the
+    refit's residual grows by over :data:`REHOLD_RESIDUAL`.
+
+    Parameters
+    ----------
+    frames : iterable of (rows, cols) ndarray
+        The frames ``results`` were tracked on, re-iterable.
+    results : list of FrameTrack
+        :func:`track_frames`' results, in the frames' own px.
+    settings : TrackSettings, optional
+    """
+    settings = settings or TrackSettings()
+    told = next((r for r in results if r.ok and r.look is not None and r.look.tip_trend),
+                None)
+    if told is None:
+        return results, 0
+    # (a frame bent far less than the one that told it shows the trend less)
+    least = REHOLD_BENT * abs(told.bend_angle_rad)
+    todo = {i for i, r in enumerate(results)
+            if r.ok and r.look is not None and not r.look.tip_trend and not r.crossing
+            and r.tip_hold == "constant" and r.fit is not None and r.stage != "backward"
+            and abs(r.bend_angle_rad) >= least}
+    if not todo:
+        return results, 0
+    out = list(results)
+    held = 0
+    last = max(todo)
+    for i, frame in enumerate(frames):
+        if i > last:
+            break
+        if i not in todo:
+            continue
+        r = results[i]
+        # (its own look, but for the trend: what this frame was fitted with)
+        look = replace(r.look, tip_trend=True)
+        refit = refine(as_float(frame), r.fit, look, iterations=1, tol_px=settings.tol_px,
+                       fit_length=False)
+        if (refit.tip_hold == "trend"
+                and refit.residual_px <= REHOLD_RESIDUAL * max(r.residual_px, 1e-3)):
+            out[i] = replace(r, curve=_reported(refit), fit=refit.curve,
+                             residual_px=refit.residual_px, tip_hold=refit.tip_hold)
+            held += 1
+    return out, held
+
+
+#: A refit that holds the tip to the trend is kept unless its residual grows
+#: by more than this factor over the frame's own fit (:func:`hold_tip_trend`).
+REHOLD_RESIDUAL = 1.1
+#: ... on frames bent at least this share of the bend of the frame that told
+#: the trend.
+REHOLD_BENT = 0.5
 
 
 def hold_section_ratio(results: list[FrameTrack]) -> tuple[list[FrameTrack], str]:

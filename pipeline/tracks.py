@@ -52,6 +52,7 @@ from .track import (
     TrackSettings,
     as_float,
     hold_section_ratio,
+    hold_tip_trend,
     spline_size,
     track_frames,
 )
@@ -288,6 +289,7 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
                 # note was of the results set aside)
                 frames, results, first_det, still_note = found
                 back_note = None
+        results, reheld = hold_tip_trend(frames, results, settings)
         results, holder_note = _without_holder(frames, results, first_det, base_hint,
                                                binning.factor)
         if holder_note and joints is not None:
@@ -339,6 +341,10 @@ def track_video(source, out_dir, *, um_per_px: float | None = None, sample=None,
     if strips_note:
         notes.append(strips_note)
     notes.append(_tip_hold_note(results))
+    if reheld:
+        notes.append(f"tip stretch held to its curvature's trend afterwards on {reheld} frames "
+                     "measured before the frames told it (each fitted once more, the video "
+                     "read again)")
     notes.append(_end_note(results))
     notes.append(_cap_note(results))
     notes.append(_drift_note(results, base_hint is not None))

@@ -103,3 +103,45 @@ def test_frames_that_ramp_alike_tell_the_trend_and_arcs_do_not():
     broken = ramps[-1].with_params(np.full(ramps[-1].coef.size, np.nan), LENGTH)
     assert not any(_votes([broken] * 8))
     assert _votes([ramps[-1]] * 8)[-1]
+
+
+def test_frames_fitted_before_the_trend_was_told_are_held_to_it_afterwards():
+    """Frames of a tube whose curvature ramps towards its tip, the first
+    three fitted before the frames told the trend (tip held to a constant
+    curvature), the last after: :func:`pipeline.track.hold_tip_trend` fits
+    the two bent at least half as far as the last once more with the trend,
+    and their tip angles come right; the one bent less, a frame at a
+    crossing, and frames with no trend told at all are left alone."""
+    from dataclasses import replace
+
+    from pipeline.track import FrameTrack, hold_tip_trend
+
+    frames, results, tips = [], [], []
+    plain = TubeLook(-1, np.full(5, HW), 0.05)
+    for k, scale in enumerate((0.4, 0.9, 0.95, 1.0)):
+        z, s, phi = ramp_axis(80 - 420j, 0.0, LENGTH, 0.002 * scale, 0.010 * scale)
+        img = axis_image((480, 640), z, s, phi, HW)
+        truth = fit_to_polyline(z[::20], 0.0, n_coef=28)
+        look = replace(plain, tip_trend=k == 3)
+        r = refine(img, truth, look, iterations=12, tol_px=0.005)
+        frames.append(img)
+        tips.append(phi[-1])
+        results.append(FrameTrack(k, "ok", _reported(r), "fast", r.residual_px, fit=r.curve,
+                                  tip_hold=r.tip_hold, look=look))
+
+    def tip_error(r, k):
+        return abs(np.degrees(r.curve.coef[-1] + r.curve.base_angle - tips[k]))
+
+    assert [r.tip_hold for r in results] == ["constant"] * 3 + ["trend"]
+    before = [tip_error(r, k) for k, r in enumerate(results)]
+    assert min(before[1:3]) > 0.12
+    out, held = hold_tip_trend(frames, results)
+    assert held == 2
+    assert [r.tip_hold for r in out] == ["constant"] + ["trend"] * 3
+    assert all(tip_error(out[k], k) < 0.1 for k in (1, 2)), before
+    assert out[0] is results[0] and out[3] is results[3]
+    # a frame at a crossing is not refitted; nor any without the trend told
+    crossed = results[:1] + [replace(results[1], crossing=True)] + results[2:]
+    assert hold_tip_trend(frames, crossed)[0][1] is crossed[1]
+    untold = results[:3]
+    assert hold_tip_trend(frames[:3], untold) == (untold, 0)
