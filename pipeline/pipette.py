@@ -813,24 +813,17 @@ def _edge_line(stations: np.ndarray, normal: complex, off: np.ndarray, grad: np.
     # (each candidate line's distance to every edge; a profile passed where
     # the nearest of its edges lies within reach)
     dist = np.abs(((pts[None, None, :] - a[..., None]) * np.conj(u[..., None])).imag)
-    best = np.full((n,) + dist.shape[:2], np.inf)
-    for r in range(n):
-        on = row == r
-        if on.any():
-            best[r] = dist[..., on].min(axis=-1)
-    passed = (best <= EDGE_AXIS_LINE_PX).sum(axis=0)
+    # (the edges come row by row: each profile's nearest, per line, at once)
+    starts = np.flatnonzero(np.r_[True, row[1:] != row[:-1]])
+    passed = (np.minimum.reduceat(dist, starts, axis=-1) <= EDGE_AXIS_LINE_PX).sum(axis=-1)
     i, j = np.unravel_index(int(np.argmax(passed)), passed.shape)
     if passed[i, j] < 3:
         return None
-    # (the edges it passes, one per profile, their line fitted)
-    chosen = []
-    for r in range(n):
-        on = np.flatnonzero(row == r)
-        if on.size:
-            k = on[int(np.argmin(dist[i, j, on]))]
-            if dist[i, j, k] <= EDGE_AXIS_LINE_PX:
-                chosen.append(pts[k])
-    xy = np.array(chosen)
+    # (the edges it passes, one per profile - its nearest, the first of a tie -
+    # their line fitted)
+    order = np.lexsort((dist[i, j], row))
+    nearest = order[np.flatnonzero(np.r_[True, row[order][1:] != row[order][:-1]])]
+    xy = pts[nearest[dist[i, j, nearest] <= EDGE_AXIS_LINE_PX]]
     centre = xy.mean()
     _, _, vt = np.linalg.svd(np.c_[(xy - centre).real, (xy - centre).imag], full_matrices=False)
     d = complex(vt[0, 0], vt[0, 1])
