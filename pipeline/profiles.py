@@ -20,6 +20,7 @@ from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
+from scipy import ndimage as ndi
 from scipy.ndimage import correlate1d, gaussian_filter1d
 
 from .robust import robust_sd
@@ -29,6 +30,21 @@ from .robust import robust_sd
 #: half as far again (measured on a 7 px tube: 2 % narrower 1.7 half-widths
 #: from the end, 10 % at 1.1): widths there are no section's.
 END_NARROWING_HW = 1.5
+
+#: A width tolerance this tight says the expected width is the tube's own
+#: (learnt from it), not a guess (see :func:`_nearer_width`).
+KNOWN_WIDTH_TOL = 0.2
+#: ... and a pair sharing an edge with the one nearest the prediction is taken
+#: instead where its width is nearer the tube's by this share of it, within
+#: NEARER_WIDTH_OFF of it, over runs of NEARER_RUN profiles. (A dyed tube's
+#: thick wall in colour: the pair of its lumen rim and the far outer edge,
+#: 15 px for 18, held over its last 260 px once bent, the midline 1.5 px to
+#: one side; a tube jumping 75 deg in a frame, found with that pair over its
+#: last stretch: bend 20-34 deg off. Taken on single profiles too, it took
+#: chance pairs among a glass capillary's lines under a tube's end.)
+NEARER_WIDTH = 0.1
+NEARER_WIDTH_OFF = 0.05
+NEARER_RUN = 3
 
 
 def sample_lines(image: np.ndarray, starts, directions, offsets) -> np.ndarray:
@@ -219,6 +235,10 @@ def edge_pairs(profiles: np.ndarray, step: float, half_width, *, polarity: int,
     the best, the one nearest the profile's origin (the prediction) wins, so a
     neighbouring coil or a crossing tube is not taken for this one (in a
     relief, the widest: a lumen's walls are no weaker than the outer ones).
+    Where the width is the tube's own (``width_tol`` at most
+    :data:`KNOWN_WIDTH_TOL`), a pair sharing an edge with that one and
+    nearer the width, along a stretch of profiles, is taken instead
+    (:func:`_nearer_width`).
 
     Parameters
     ----------
@@ -385,6 +405,32 @@ def _encloses(outer: Edges, inner: Edges) -> np.ndarray:
             & (outer.centre + 0.5 * outer.width > inner.centre + 0.5 * inner.width))
 
 
+def _nearer_width(pick: np.ndarray, strong: np.ndarray, width: np.ndarray,
+                  centre: np.ndarray, expected: np.ndarray, *, k: int) -> np.ndarray:
+    """``pick`` (each profile's pair, a flat index into its K×K left/right
+    peaks), or a ``strong`` pair sharing one of its edges whose ``width`` is
+    within :data:`NEARER_WIDTH_OFF` of the ``expected`` one and nearer it by
+    :data:`NEARER_WIDTH` of it: one outer edge and a thick wall's lumen edge
+    taken for the tube, where the tube's outer pair shares that outer edge.
+    Only over runs of :data:`NEARER_RUN` neighbouring profiles (in the order
+    given) whose ``centre`` moves the same way: a pair taken along a stretch of
+    the tube, not a chance pair of lines on one profile (the tube's end over a
+    glass capillary's walls)."""
+    rows = np.arange(pick.size)
+    li, ri = np.divmod(np.arange(k * k), k)
+    shares = strong & ((li[None, :] == (pick // k)[:, None]) | (ri[None, :] == (pick % k)[:, None]))
+    off = np.where(shares, np.abs(width - expected[:, None]), np.inf)
+    better = np.argmin(off, axis=1)
+    gain = np.abs(width[rows, pick] - expected) - off[rows, better]
+    take = (gain > NEARER_WIDTH * expected) & (off[rows, better] <= NEARER_WIDTH_OFF * expected)
+    way = np.sign(centre[rows, better] - centre[rows, pick])
+    for sign in (-1.0, 1.0):
+        runs, _ = ndi.label(take & (way == sign))
+        size = np.bincount(runs)
+        take[(runs > 0) & (size[runs] < NEARER_RUN)] = False
+    return np.where(take, better, pick)
+
+
 def _best_pairs(left, right, *, step, half_width, window, width_tol, min_strength,
                 n_peaks, gaps, widest=False) -> Edges:
     """:func:`edge_pairs` given each side's inward steps (NaN: no edge there,
@@ -412,6 +458,9 @@ def _best_pairs(left, right, *, step, half_width, window, width_tol, min_strengt
         pick = np.argmax(np.where(strong, width.reshape(m, -1), -np.inf), axis=1)
     else:
         pick = np.argmin(np.where(strong, np.abs(centre).reshape(m, -1), np.inf), axis=1)
+        if width_tol <= KNOWN_WIDTH_TOL:
+            pick = _nearer_width(pick, strong, width.reshape(m, -1), centre.reshape(m, -1),
+                                 2 * hw[:, 0, 0], k=idx.shape[1])
     rows = np.arange(m)
     valid = np.isfinite(best[:, 0])
     def chosen(a):

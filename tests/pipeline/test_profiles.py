@@ -157,3 +157,38 @@ def test_a_strip_is_the_mean_of_its_parallel_lines():
     assert np.allclose(got, want, equal_nan=True)
     # a copy outside the image makes that sample NaN, as for a single line
     assert np.isnan(got[2]).any() and not np.isnan(got[0]).any()
+
+
+def _walled_profile(origins, step: float = 0.25, half: float = 20.0):
+    """A hollow tube's profiles (outer edges at ±9 px, its thick walls' dark
+    lumen rims at -6..-4 and +3..+5, every step falling on entering from the
+    left or rising on leaving at the right, as a dark-rimmed tube's do), seen
+    from profiles whose origins lie at ``origins`` px."""
+    off = np.arange(-half, half + step / 2, step)[None, :] + np.asarray(origins)[:, None]
+
+    def up(x):  # 0 -> 1 across x, over about a pixel
+        return 0.5 * (1 + erf((off - x) / 0.8))
+    level = (1.0 - 0.4 * up(-9) - 0.5 * up(-6) + 0.45 * up(-4) - 0.45 * up(3)
+             + 0.5 * up(5) + 0.4 * up(9))
+    return level, step
+
+
+def test_a_known_width_takes_the_outer_pair_over_one_sharing_its_edge_with_a_lumen_rim():
+    # predictions along a stretch of the tube sit at the middle of the pair made
+    # of the left rim and the right outer edge (15 px wide, 1.5 px off the
+    # tube's middle)
+    prof, step = _walled_profile(np.full(6, 1.5))
+    known = edge_pairs(prof, step, 9.0, polarity=-1, window=6.0, width_tol=0.2)
+    assert known.valid.all()
+    assert np.all(np.abs(known.width - 18.0) < 0.2) and np.all(np.abs(known.centre + 1.5) < 0.1)
+    # a guessed width (a wide tolerance) does not say which pair is the tube:
+    # the nearest to the prediction is taken
+    guessed = edge_pairs(prof, step, 9.0, polarity=-1, window=6.0, width_tol=0.4)
+    assert np.all(np.abs(guessed.width - 15.0) < 0.3) and np.all(np.abs(guessed.centre) < 0.2)
+    # nor is a profile switched alone, among profiles predicted well: a chance
+    # pair of lines, not a stretch of the tube taken by its wrong pair
+    prof, step = _walled_profile([0.0, 0.0, 1.5, 0.0, 0.0])
+    e = edge_pairs(prof, step, 9.0, polarity=-1, window=6.0, width_tol=0.2)
+    assert np.all(np.abs(e.width[[0, 1, 3, 4]] - 18.0) < 0.2)
+    assert np.all(np.abs(e.centre[[0, 1, 3, 4]]) < 0.1)
+    assert abs(e.width[2] - 15.0) < 0.3
