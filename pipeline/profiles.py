@@ -423,6 +423,9 @@ def _nearer_width(pick: np.ndarray, strong: np.ndarray, width: np.ndarray,
     better = np.argmin(off, axis=1)
     gain = np.abs(width[rows, pick] - expected) - off[rows, better]
     take = (gain > NEARER_WIDTH * expected) & (off[rows, better] <= NEARER_WIDTH_OFF * expected)
+    if not take.any():
+        # (most calls, every round of every frame: the runs need no labelling)
+        return pick
     way = np.sign(centre[rows, better] - centre[rows, pick])
     for sign in (-1.0, 1.0):
         runs, _ = ndi.label(take & (way == sign))
